@@ -1,0 +1,1 @@
+#include "dae/ida.h"

@@ -1,0 +1,1 @@
+#include "dae/klu_solver.h"

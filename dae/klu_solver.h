@@ -1,0 +1,34 @@
+// KLU for a square sparse matrix with a fixed pattern: symbolic analysis once,
+// numeric factorisation and refactorisation, solves in place.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "dae/sparse.h"
+
+namespace mbdae::dae {
+
+class KluSolver {
+ public:
+  explicit KluSolver(const CscPattern& pattern);  // analyses the pattern
+  ~KluSolver();
+  KluSolver(const KluSolver&) = delete;
+  KluSolver& operator=(const KluSolver&) = delete;
+
+  // Factorises the matrix with these values (pattern order). The first call does a
+  // full factorisation; later calls refactor with the same pivots when possible.
+  // Returns false with a reason when the matrix is singular.
+  bool Factor(const double* values, std::string* error = nullptr);
+  // Solves A x = b in place (b has `rows` entries).
+  void Solve(double* b) const;
+  // Reciprocal condition estimate of the last factorisation (klu_rcond).
+  double rcond() const;
+  long factorizations() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mbdae::dae

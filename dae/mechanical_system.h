@@ -1,0 +1,74 @@
+// The DAE interface the integrators see: a constrained second-order mechanical
+// system in index-3 form
+//
+//   M(q) a + C_q(q, t)^T lambda = Q(q, v, t),     C(q, t) = 0,      v = q', a = q''.
+//
+// The integrators know nothing else of what the system models. Every matrix has a
+// sparsity pattern fixed for the lifetime of the object and is filled in place.
+#pragma once
+
+#include <vector>
+
+#include "dae/sparse.h"
+
+namespace mbdae::dae {
+
+// The matrices a system emits, each with its own fixed pattern.
+enum class Matrix {
+  kMass,            // M(q)                               nq x nq
+  kMassTimesAccDq,  // d(M(q) a)/dq at fixed a             nq x nq
+  kForceDq,         // dQ/dq                               nq x nq
+  kForceDv,         // dQ/dv                               nq x nq
+  kConstraintDq,    // C_q                                 nc x nq
+  kConstraintTDq,   // d(C_q^T w)/dq at fixed w            nq x nq
+  kConstraintVelDq  // d(C_q v + C_t)/dq at fixed v        nc x nq
+};
+constexpr int kNumMatrices = 7;
+
+// Where to evaluate. Pointers may be null when nothing requested needs them.
+struct EvalInput {
+  double t = 0;
+  const double* q = nullptr;  // nq
+  const double* v = nullptr;  // nq
+  const double* a = nullptr;  // nq, for kMassTimesAccDq
+  const double* w = nullptr;  // nc, weights for kConstraintTDq
+};
+
+// What to evaluate: every non-null pointer is filled (vectors by size, matrices by
+// the nnz of their pattern, in pattern order).
+struct EvalOutput {
+  double* force = nullptr;           // Q(q, v, t), nq
+  double* constraint = nullptr;      // C(q, t), nc
+  double* constraint_dt = nullptr;   // C_t(q, t), nc   (velocity level: C_q v + C_t = 0)
+  double* acc_rhs = nullptr;         // gamma, nc: acceleration level C_q a = gamma, i.e.
+                                     // gamma = -(C_q v)_q v - 2 C_qt v - C_tt
+  double* matrix[kNumMatrices] = {nullptr, nullptr, nullptr, nullptr,
+                                  nullptr, nullptr, nullptr};
+  double*& operator[](Matrix m) { return matrix[static_cast<int>(m)]; }
+};
+
+// Return codes of Evaluate, as in SUNDIALS: 0 success, > 0 recoverable (the
+// integrator may retry with a smaller step), < 0 unrecoverable.
+class MechanicalSystem {
+ public:
+  virtual ~MechanicalSystem() = default;
+
+  virtual int num_coordinates() const = 0;  // nq
+  virtual int num_constraints() const = 0;  // nc
+  virtual const CscPattern& pattern(Matrix m) const = 0;
+
+  // First indices of groups of four coordinates that are unit quaternions (Euler
+  // parameters, scalar first) whose normalisation is one of the constraints; used by
+  // integrators that treat rotations specially (modified HHT). Empty by default.
+  virtual const std::vector<int>& quaternion_offsets() const { return no_quaternions_; }
+
+  virtual int Evaluate(const EvalInput& in, EvalOutput& out) = 0;
+
+  // A human-readable reason for the last non-zero return of Evaluate.
+  virtual const char* last_error() const { return ""; }
+
+ private:
+  std::vector<int> no_quaternions_;
+};
+
+}  // namespace mbdae::dae

@@ -1,0 +1,137 @@
+// The multibody model as loaded from a file: what the system is, immutable during a
+// simulation. Everything a computation needs beyond it lives in a workspace.
+#pragma once
+
+#include <Eigen/Dense>
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mbs/expression.h"
+
+namespace mbdae::mbs {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Quat = Eigen::Vector4d;  // Euler parameters e0 (scalar), e1, e2, e3
+
+// Where an element was defined, for messages.
+struct SourceLocation {
+  std::string file;
+  int line = 0;    // 1-based, 0 if unknown
+  int column = 0;  // 1-based
+};
+
+struct Parameter {
+  std::string name;
+  double value = 0;         // evaluated (after --set overrides)
+  std::string expression;   // as written, if it was an expression
+  SourceLocation where;
+};
+
+// A marker: a frame fixed on a body (or on ground, body = -1).
+struct Marker {
+  std::string name;          // full name, "body.marker" or "ground.O"
+  int body = -1;             // index into Model::bodies, -1 for ground
+  Vec3 position = Vec3::Zero();        // body axes, from the centre of mass (ground: world)
+  Mat3 orientation = Mat3::Identity(); // marker axes to body axes (ground: to world)
+  SourceLocation where;
+};
+
+struct Body {
+  std::string name;
+  double mass = 0;
+  Mat3 inertia = Mat3::Zero();  // about the centre of mass, body axes
+  Vec3 position = Vec3::Zero(); // initial centre of mass, world
+  Quat orientation = Quat(1, 0, 0, 0);  // initial Euler parameters, normalised
+  Vec3 velocity = Vec3::Zero();          // initial, world
+  Vec3 angular_velocity = Vec3::Zero();  // initial, world axes
+  int cm_marker = -1;           // index of the marker `cm`
+  SourceLocation where;
+};
+
+enum class MeasureType { kTranslational, kRotational };
+enum class Quantity { kPosition, kVelocity, kAcceleration };  // rotational: angle, angular_velocity, angular_acceleration
+enum class Component { kX, kY, kZ, kDistance };
+enum class MeasureFrame { kJ, kWorld };
+
+struct Measure {
+  std::string name;
+  MeasureType type = MeasureType::kTranslational;
+  int i = -1, j = -1;                  // marker indices; j defaults to ground.O
+  Component component = Component::kX; // translational; rotational uses kX/kY/kZ as the axis
+  MeasureFrame frame = MeasureFrame::kJ;
+  Quantity quantity = Quantity::kPosition;
+  bool offset_initial = false;
+  SourceLocation where;
+};
+
+// Lock bits, in marker j's axes.
+enum Lock : unsigned { kLockX = 1, kLockY = 2, kLockZ = 4, kLockRx = 8, kLockRy = 16, kLockRz = 32 };
+enum class JointType { kFixed, kSpherical, kRevolute, kPrismatic, kCylindrical, kUniversal, kPlanar, kGeneric };
+
+struct Joint {
+  std::string name;
+  JointType type = JointType::kGeneric;
+  int i = -1, j = -1;  // marker indices
+  unsigned locks = 0;  // Lock bits; equations are emitted in the order x y z rx ry rz
+  SourceLocation where;
+};
+
+enum class ForceType { kSpringDamper, kForce, kTorque };
+enum class ForceFrame { kWorld, kI, kJ };
+
+struct Force {
+  std::string name;
+  ForceType type = ForceType::kForce;
+  int i = -1, j = -1;  // marker indices; j defaults to ground.O
+  ForceFrame frame = ForceFrame::kWorld;
+  // spring_damper
+  Expression stiffness, damping, free_length, preload;
+  // force / torque: components in `frame` axes
+  std::array<Expression, 3> value;
+  SourceLocation where;
+};
+
+enum class IntegratorKind { kHht, kIda };
+
+struct SimulationSettings {
+  double t_end = 1.0;
+  double output_step = 1e-2;
+  IntegratorKind integrator = IntegratorKind::kHht;
+  double hht_alpha = -0.1;
+  double hht_step = 1e-3;
+  bool hht_adaptive = false;
+  double hht_tolerance = 1e-6;
+  bool hht_modified = true;
+  double ida_rtol = 1e-8;
+  double ida_atol = 1e-10;
+};
+
+struct Model {
+  std::string file;        // path as given
+  std::string name;
+  Vec3 gravity = Vec3::Zero();
+  std::vector<Parameter> parameters;
+  std::vector<Marker> markers;   // ground markers first (ground.O is index 0), then bodies'
+  std::vector<Body> bodies;
+  std::vector<Measure> measures;
+  std::vector<Joint> joints;
+  std::vector<Force> forces;
+  SimulationSettings simulation;
+
+  int num_coordinates() const { return 7 * static_cast<int>(bodies.size()); }
+  static int coordinate_offset(int body) { return 7 * body; }
+
+  // Lookups; -1 if absent.
+  int find_parameter(const std::string& name) const;
+  int find_marker(const std::string& full_name) const;
+  int find_body(const std::string& name) const;
+  int find_measure(const std::string& name) const;
+
+  std::vector<double> parameter_values() const;
+};
+
+}  // namespace mbdae::mbs

@@ -1,0 +1,63 @@
+// The multibody model as a mechanical DAE: coordinates are per body the centre-of-mass
+// position and the Euler parameters (7), constraints the joints' equations followed by
+// one normalisation per body (e^T e - 1 = 0, named BODY.euler_norm).
+//
+// Function style: the Model is immutable; a MultibodySystem holds the model reference,
+// the parameter values, the fixed sparsity patterns and a workspace.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dae/mechanical_system.h"
+#include "mbs/model.h"
+
+namespace mbdae::mbs {
+
+class MultibodySystem final : public dae::MechanicalSystem {
+ public:
+  // parameters: values by Model::parameters index (default: the model's values).
+  explicit MultibodySystem(const Model& model, std::vector<double> parameters = {});
+
+  int num_coordinates() const override;
+  int num_constraints() const override;
+  const dae::CscPattern& pattern(dae::Matrix m) const override;
+  const std::vector<int>& quaternion_offsets() const override;
+  int Evaluate(const dae::EvalInput& in, dae::EvalOutput& out) override;
+  const char* last_error() const override;
+
+  const Model& model() const;
+  // Names: coordinates "body.x" .. "body.e3"; constraints "joint.x" .. "joint.rz",
+  // "body.euler_norm". Joint equations in the joints' order, then the normalisations.
+  const std::vector<std::string>& coordinate_names() const;
+  const std::vector<std::string>& constraint_names() const;
+  // For each constraint equation: the joint index, or -1 for a normalisation.
+  const std::vector<int>& constraint_joint() const;
+
+  std::vector<double>& parameters();
+  const std::vector<double>& parameters() const;
+
+  // Initial state from the model (positions, Euler parameters, velocities; the Euler
+  // parameter rates from the angular velocities); a and lambda zero.
+  void InitialState(std::vector<double>& q, std::vector<double>& v) const;
+
+  // Outputs at a solved state (lambda of the full constraint set).
+  // Measure values, in Model::measures order (without offset_initial applied).
+  void EvaluateMeasures(double t, const double* q, const double* v, const double* a,
+                        double* values) const;
+  // Reaction of joint k on body i at marker i, world axes: force and torque (3 + 3).
+  void JointReaction(int joint, double t, const double* q, const double* lambda,
+                     double* force, double* torque) const;
+  // Action of force element k on marker i, world axes.
+  void ForceAction(int force, double t, const double* q, const double* v, double* force,
+                   double* torque) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+ public:
+  ~MultibodySystem() override;
+};
+
+}  // namespace mbdae::mbs
