@@ -49,6 +49,10 @@ class MultibodySystem final : public dae::MechanicalSystem {
   // Reaction of joint k on body i at marker i, world axes: force and torque (3 + 3).
   void JointReaction(int joint, double t, const double* q, const double* lambda,
                      double* force, double* torque) const;
+  // Kinetic energy, and potential energy of gravity and of the spring_damper springs
+  // (k/2 (l - l0)^2 - preload (l - l0)); forces of type force/torque have none.
+  double KineticEnergy(const double* q, const double* v) const;
+  double PotentialEnergy(double t, const double* q) const;
   // Action of force element k on marker i, world axes.
   void ForceAction(int force, double t, const double* q, const double* v, double* force,
                    double* torque) const;
