@@ -1,0 +1,2 @@
+// Placeholder: the system tests follow.
+#include <gtest/gtest.h>
