@@ -47,6 +47,11 @@ class BlockAssembler {
   void Finalize(int rows, int cols);
 
   const CscPattern& pattern() const { return pattern_; }
+  // Sets all nnz values of the result to zero.
+  void SetZero(double* values) const {
+    for (int k = 0; k < pattern_.nnz(); ++k) values[k] = 0.0;
+  }
+  int num_blocks() const { return static_cast<int>(blocks_.size()); }
   // values[map[block][k]] += scale * block_values[k] for every entry k of the block.
   void Accumulate(int block, const double* block_values, double scale, double* values) const;
   // Position in the result of entry k of a block.
