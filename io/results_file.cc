@@ -1,1 +1,320 @@
 #include "io/results_file.h"
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <cassert>
+#include <stdexcept>
+#include <utility>
+
+namespace mbdae::io {
+namespace {
+
+// Owns one HDF5 identifier and closes it with the matching H5?close.
+class Handle {
+ public:
+  using Closer = herr_t (*)(hid_t);
+  Handle() = default;
+  Handle(hid_t id, Closer close) : id_(id), close_(close) {}
+  Handle(Handle&& o) noexcept : id_(std::exchange(o.id_, H5I_INVALID_HID)), close_(o.close_) {}
+  Handle& operator=(Handle&& o) noexcept {
+    if (this != &o) {
+      Reset();
+      id_ = std::exchange(o.id_, H5I_INVALID_HID);
+      close_ = o.close_;
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  ~Handle() { Reset(); }
+  void Reset() {
+    if (id_ >= 0 && close_) close_(id_);
+    id_ = H5I_INVALID_HID;
+  }
+  hid_t get() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  hid_t id_ = H5I_INVALID_HID;
+  Closer close_ = nullptr;
+};
+
+// Silences the HDF5 error stack printing while alive (errors become exceptions).
+class QuietErrors {
+ public:
+  QuietErrors() {
+    H5Eget_auto2(H5E_DEFAULT, &func_, &data_);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietErrors() { H5Eset_auto2(H5E_DEFAULT, func_, data_); }
+
+ private:
+  H5E_auto2_t func_ = nullptr;
+  void* data_ = nullptr;
+};
+
+Handle Check(hid_t id, herr_t (*close)(hid_t), const std::string& what) {
+  if (id < 0) throw std::runtime_error("HDF5: cannot " + what);
+  return Handle(id, close);
+}
+void Check(herr_t status, const std::string& what) {
+  if (status < 0) throw std::runtime_error("HDF5: cannot " + what);
+}
+
+Handle VariableStringType() {
+  Handle type = Check(H5Tcopy(H5T_C_S1), H5Tclose, "copy the string type");
+  Check(H5Tset_size(type.get(), H5T_VARIABLE), "make a variable-length string type");
+  Check(H5Tset_cset(type.get(), H5T_CSET_UTF8), "set the UTF-8 character set");
+  return type;
+}
+
+void CheckName(const std::string& name, const std::string& kind) {
+  if (name.empty() || name.find('/') != std::string::npos || name == "." || name == "..")
+    throw std::runtime_error("results file: " + kind + " name '" + name +
+                             "' cannot be an HDF5 group or dataset name");
+}
+
+// One extendible dataset of rows x cols doubles (cols == 0: a 1-D dataset of rows).
+struct RowDataset {
+  Handle id;
+  int cols = 0;     // 0 for a 1-D dataset
+  int rank = 1;
+};
+
+RowDataset CreateRowDataset(hid_t parent, const std::string& name, int cols, bool one_dim) {
+  RowDataset d;
+  d.cols = one_dim ? 0 : cols;
+  d.rank = one_dim ? 1 : 2;
+  const int width = std::max(1, d.cols);
+  hsize_t dims[2] = {0, static_cast<hsize_t>(d.cols)};
+  // Unlimited in both dimensions: a fixed zero-width second dimension cannot be chunked.
+  hsize_t max_dims[2] = {H5S_UNLIMITED, H5S_UNLIMITED};
+  // About 8 KiB per chunk, at least 16 rows.
+  const hsize_t chunk_rows = std::max<hsize_t>(16, 1024 / static_cast<hsize_t>(width));
+  hsize_t chunk[2] = {chunk_rows, static_cast<hsize_t>(width)};
+  Handle space = Check(H5Screate_simple(d.rank, dims, max_dims), H5Sclose, "create a dataspace");
+  Handle plist = Check(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create a property list");
+  Check(H5Pset_chunk(plist.get(), d.rank, chunk), "set the chunk size of " + name);
+  d.id = Check(H5Dcreate2(parent, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT,
+                          plist.get(), H5P_DEFAULT),
+               H5Dclose, "create dataset " + name);
+  return d;
+}
+
+void WriteStrings(hid_t parent, const std::string& name, const std::vector<std::string>& values) {
+  Handle type = VariableStringType();
+  hsize_t n = values.size();
+  Handle space = Check(H5Screate_simple(1, &n, nullptr), H5Sclose, "create a dataspace");
+  Handle ds = Check(H5Dcreate2(parent, name.c_str(), type.get(), space.get(), H5P_DEFAULT,
+                               H5P_DEFAULT, H5P_DEFAULT),
+                    H5Dclose, "create dataset " + name);
+  if (values.empty()) return;
+  std::vector<const char*> ptrs;
+  ptrs.reserve(values.size());
+  for (const auto& s : values) ptrs.push_back(s.c_str());
+  Check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()),
+        "write dataset " + name);
+}
+
+Handle CreateGroup(hid_t parent, const std::string& name) {
+  return Check(H5Gcreate2(parent, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
+               "create group " + name);
+}
+
+}  // namespace
+
+struct ResultsFile::Impl {
+  std::string path;
+  ResultsLayout layout;
+  Handle file;
+  long rows = 0;
+  RowDataset time, q, v, a, lambda;
+  std::vector<RowDataset> body_datasets;  // 4 per body
+  std::vector<RowDataset> measures;
+  std::vector<RowDataset> joints;         // 2 per joint
+  std::vector<RowDataset> forces;         // 2 per force
+  RowDataset kinetic, potential, position_violation, velocity_violation;
+  std::vector<double> zeros;
+
+  // Extends d by one row and writes `values` (cols of them, or one for 1-D) there.
+  void Append(RowDataset& d, const double* values) {
+    const int width = std::max(1, d.cols);
+    if (values == nullptr) {
+      if (static_cast<int>(zeros.size()) < width) zeros.assign(width, 0.0);
+      values = zeros.data();
+    }
+    hsize_t new_dims[2] = {static_cast<hsize_t>(rows + 1), static_cast<hsize_t>(d.cols)};
+    Check(H5Dset_extent(d.id.get(), new_dims), "extend a dataset of " + path);
+    if (d.rank == 2 && d.cols == 0) return;  // nothing to write in a zero-width row
+    Handle file_space = Check(H5Dget_space(d.id.get()), H5Sclose, "get a dataspace");
+    hsize_t start[2] = {static_cast<hsize_t>(rows), 0};
+    hsize_t count[2] = {1, static_cast<hsize_t>(d.cols)};
+    Check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
+          "select a row");
+    hsize_t mem_count = static_cast<hsize_t>(width);
+    Handle mem_space = Check(H5Screate_simple(1, &mem_count, nullptr), H5Sclose,
+                             "create a dataspace");
+    Check(H5Dwrite(d.id.get(), H5T_NATIVE_DOUBLE, mem_space.get(), file_space.get(), H5P_DEFAULT,
+                   values),
+          "write a row to " + path);
+  }
+
+  void DeleteAttributeIfPresent(const std::string& name) {
+    htri_t exists = H5Aexists(file.get(), name.c_str());
+    Check(exists < 0 ? -1 : 0, "query attribute " + name);
+    if (exists > 0) Check(H5Adelete(file.get(), name.c_str()), "delete attribute " + name);
+  }
+};
+
+ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
+    : impl_(std::make_unique<Impl>()) {
+  QuietErrors quiet;
+  Impl& m = *impl_;
+  m.path = path;
+  m.layout = layout;
+  for (const auto& n : layout.bodies) CheckName(n, "body");
+  for (const auto& n : layout.measures) CheckName(n, "measure");
+  for (const auto& n : layout.joints) CheckName(n, "joint");
+  for (const auto& n : layout.forces) CheckName(n, "force");
+
+  m.file = Handle(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (!m.file.valid()) throw std::runtime_error("cannot create the results file '" + path + "'");
+  const hid_t f = m.file.get();
+  const int nq = static_cast<int>(layout.q_names.size());
+  const int nc = static_cast<int>(layout.lambda_names.size());
+
+  m.time = CreateRowDataset(f, "time", 0, true);
+  m.q = CreateRowDataset(f, "q", nq, false);
+  m.v = CreateRowDataset(f, "v", nq, false);
+  m.a = CreateRowDataset(f, "a", nq, false);
+  m.lambda = CreateRowDataset(f, "lambda", nc, false);
+  WriteStrings(f, "q_names", layout.q_names);
+  WriteStrings(f, "lambda_names", layout.lambda_names);
+
+  Handle bodies = CreateGroup(f, "bodies");
+  for (const auto& name : layout.bodies) {
+    Handle g = CreateGroup(bodies.get(), name);
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "position", 3, false));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "orientation", 4, false));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "velocity", 3, false));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "angular_velocity", 3, false));
+  }
+  Handle measures = CreateGroup(f, "measures");
+  for (const auto& name : layout.measures)
+    m.measures.push_back(CreateRowDataset(measures.get(), name, 0, true));
+  Handle joints = CreateGroup(f, "joints");
+  for (const auto& name : layout.joints) {
+    Handle g = CreateGroup(joints.get(), name);
+    m.joints.push_back(CreateRowDataset(g.get(), "force", 3, false));
+    m.joints.push_back(CreateRowDataset(g.get(), "torque", 3, false));
+  }
+  Handle forces = CreateGroup(f, "forces");
+  for (const auto& name : layout.forces) {
+    Handle g = CreateGroup(forces.get(), name);
+    m.forces.push_back(CreateRowDataset(g.get(), "force", 3, false));
+    m.forces.push_back(CreateRowDataset(g.get(), "torque", 3, false));
+  }
+  Handle energy = CreateGroup(f, "energy");
+  m.kinetic = CreateRowDataset(energy.get(), "kinetic", 0, true);
+  m.potential = CreateRowDataset(energy.get(), "potential", 0, true);
+  Handle violation = CreateGroup(f, "violation");
+  m.position_violation = CreateRowDataset(violation.get(), "position", 0, true);
+  m.velocity_violation = CreateRowDataset(violation.get(), "velocity", 0, true);
+  SetAttribute("format", 1L);
+  Flush();
+}
+
+ResultsFile::~ResultsFile() {
+  if (impl_ && impl_->file.valid()) {
+    QuietErrors quiet;
+    H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
+  }
+}
+
+void ResultsFile::AppendRow(const ResultsRow& row) {
+  QuietErrors quiet;
+  Impl& m = *impl_;
+  m.Append(m.time, &row.t);
+  m.Append(m.q, row.q);
+  m.Append(m.v, row.v);
+  m.Append(m.a, row.a);
+  m.Append(m.lambda, row.lambda);
+  static constexpr int kBodyOffsets[4] = {0, 3, 7, 10};
+  for (size_t b = 0; b < m.layout.bodies.size(); ++b)
+    for (int k = 0; k < 4; ++k)
+      m.Append(m.body_datasets[4 * b + k],
+               row.body_data ? row.body_data + 13 * b + kBodyOffsets[k] : nullptr);
+  for (size_t i = 0; i < m.measures.size(); ++i)
+    m.Append(m.measures[i], row.measures ? row.measures + i : nullptr);
+  for (size_t j = 0; j < m.layout.joints.size(); ++j)
+    for (int k = 0; k < 2; ++k)
+      m.Append(m.joints[2 * j + k], row.joint_data ? row.joint_data + 6 * j + 3 * k : nullptr);
+  for (size_t j = 0; j < m.layout.forces.size(); ++j)
+    for (int k = 0; k < 2; ++k)
+      m.Append(m.forces[2 * j + k], row.force_data ? row.force_data + 6 * j + 3 * k : nullptr);
+  m.Append(m.kinetic, &row.kinetic_energy);
+  m.Append(m.potential, &row.potential_energy);
+  m.Append(m.position_violation, &row.position_violation);
+  m.Append(m.velocity_violation, &row.velocity_violation);
+  ++m.rows;
+  Flush();
+}
+
+void ResultsFile::SetAttribute(const std::string& name, double value) {
+  QuietErrors quiet;
+  impl_->DeleteAttributeIfPresent(name);
+  Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(impl_->file.get(), name.c_str(), H5T_NATIVE_DOUBLE, space.get(),
+                                 H5P_DEFAULT, H5P_DEFAULT),
+                      H5Aclose, "create attribute " + name);
+  Check(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), "write attribute " + name);
+}
+
+void ResultsFile::SetAttribute(const std::string& name, long value) {
+  QuietErrors quiet;
+  impl_->DeleteAttributeIfPresent(name);
+  const long long v = value;
+  Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(impl_->file.get(), name.c_str(), H5T_STD_I64LE, space.get(),
+                                 H5P_DEFAULT, H5P_DEFAULT),
+                      H5Aclose, "create attribute " + name);
+  Check(H5Awrite(attr.get(), H5T_NATIVE_LLONG, &v), "write attribute " + name);
+}
+
+void ResultsFile::SetAttribute(const std::string& name, const std::string& value) {
+  QuietErrors quiet;
+  impl_->DeleteAttributeIfPresent(name);
+  Handle type = VariableStringType();
+  Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(impl_->file.get(), name.c_str(), type.get(), space.get(),
+                                 H5P_DEFAULT, H5P_DEFAULT),
+                      H5Aclose, "create attribute " + name);
+  const char* p = value.c_str();
+  Check(H5Awrite(attr.get(), type.get(), &p), "write attribute " + name);
+}
+
+void ResultsFile::SetAttribute(const std::string& name, const std::vector<std::string>& values) {
+  QuietErrors quiet;
+  impl_->DeleteAttributeIfPresent(name);
+  Handle type = VariableStringType();
+  hsize_t n = values.size();
+  Handle space = Check(H5Screate_simple(1, &n, nullptr), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(impl_->file.get(), name.c_str(), type.get(), space.get(),
+                                 H5P_DEFAULT, H5P_DEFAULT),
+                      H5Aclose, "create attribute " + name);
+  if (values.empty()) return;
+  std::vector<const char*> ptrs;
+  for (const auto& s : values) ptrs.push_back(s.c_str());
+  Check(H5Awrite(attr.get(), type.get(), ptrs.data()), "write attribute " + name);
+}
+
+void ResultsFile::Flush() {
+  QuietErrors quiet;
+  Check(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), "flush " + impl_->path);
+}
+
+long ResultsFile::rows() const { return impl_->rows; }
+const std::string& ResultsFile::path() const { return impl_->path; }
+
+}  // namespace mbdae::io

@@ -1,5 +1,14 @@
 // The HDF5 results file of the command-line contract: one row per output time,
 // extendible datasets flushed as the run goes.
+//
+// Datasets (N rows so far):
+//   /time N; /q /v /a N x nq; /q_names nq; /lambda N x nc; /lambda_names nc;
+//   /bodies/NAME/{position N x 3, orientation N x 4, velocity N x 3, angular_velocity N x 3};
+//   /measures/NAME N; /joints/NAME/{force,torque} N x 3; /forces/NAME/{force,torque} N x 3;
+//   /energy/{kinetic,potential} N; /violation/{position,velocity} N (max |C|, max |C_q v + C_t|).
+// Name lists are variable-length UTF-8 string datasets. Every dataset is chunked with an
+// unlimited first dimension and the file is flushed after every row, so a run that is
+// stopped keeps the rows it wrote.
 #pragma once
 
 #include <map>
@@ -19,6 +28,7 @@ struct ResultsLayout {
 };
 
 // One output row. Body data per body: position(3) orientation(4) velocity(3) angular_velocity(3).
+// Null pointers write zeros (so a partial row is still well formed).
 struct ResultsRow {
   double t = 0;
   const double* q = nullptr;
@@ -29,22 +39,33 @@ struct ResultsRow {
   const double* measures = nullptr;      // one per measure
   const double* joint_data = nullptr;    // 6 per joint: force(3), torque(3)
   const double* force_data = nullptr;    // 6 per force element: force(3), torque(3)
+  double kinetic_energy = 0;             // /energy/kinetic
+  double potential_energy = 0;           // /energy/potential
+  double position_violation = 0;         // /violation/position
+  double velocity_violation = 0;         // /violation/velocity
 };
 
 class ResultsFile {
  public:
-  // Creates (truncates) the file; throws std::runtime_error on failure.
+  // Creates (truncates) the file; throws std::runtime_error on failure (the message
+  // names the path). Names containing '/' or empty names are rejected the same way.
   ResultsFile(const std::string& path, const ResultsLayout& layout);
   ~ResultsFile();
   ResultsFile(const ResultsFile&) = delete;
   ResultsFile& operator=(const ResultsFile&) = delete;
 
   void AppendRow(const ResultsRow& row);  // extends every dataset by one row and flushes
-  // Root attributes (numbers and strings).
+  // Root attributes (numbers and strings); setting one again replaces it.
   void SetAttribute(const std::string& name, double value);
   void SetAttribute(const std::string& name, const std::string& value);
+  // Added: integer attributes (stored as 64-bit integers) and string lists.
+  void SetAttribute(const std::string& name, int value) { SetAttribute(name, static_cast<long>(value)); }
+  void SetAttribute(const std::string& name, long value);
+  void SetAttribute(const std::string& name, const char* value) { SetAttribute(name, std::string(value)); }
+  void SetAttribute(const std::string& name, const std::vector<std::string>& values);
   void Flush();
   long rows() const;
+  const std::string& path() const;
 
  private:
   struct Impl;

@@ -1,0 +1,291 @@
+// Round trip of the results file: written with ResultsFile, read back with the HDF5 C API.
+#include "io/results_file.h"
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace mbdae::io {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  return ::testing::TempDir() + "/mbdae_io_" + name + "_" + std::to_string(getpid()) + ".h5";
+}
+
+// Reads a double dataset; dims returned in `dims`.
+std::vector<double> ReadDoubles(hid_t file, const std::string& name, std::vector<hsize_t>* dims) {
+  hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  EXPECT_GE(ds, 0) << name;
+  if (ds < 0) return {};
+  hid_t space = H5Dget_space(ds);
+  const int rank = H5Sget_simple_extent_ndims(space);
+  dims->assign(rank, 0);
+  H5Sget_simple_extent_dims(space, dims->data(), nullptr);
+  hsize_t n = 1;
+  for (hsize_t d : *dims) n *= d;
+  std::vector<double> out(n);
+  if (n > 0) EXPECT_GE(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), 0);
+  H5Sclose(space);
+  H5Dclose(ds);
+  return out;
+}
+
+std::vector<std::string> ReadStrings(hid_t file, const std::string& name) {
+  hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+  EXPECT_GE(ds, 0) << name;
+  hid_t space = H5Dget_space(ds);
+  hsize_t n = 0;
+  H5Sget_simple_extent_dims(space, &n, nullptr);
+  hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, H5T_VARIABLE);
+  H5Tset_cset(type, H5T_CSET_UTF8);
+  std::vector<char*> raw(n, nullptr);
+  std::vector<std::string> out;
+  if (n > 0) {
+    EXPECT_GE(H5Dread(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()), 0);
+    for (char* s : raw) out.emplace_back(s ? s : "");
+    H5Dvlen_reclaim(type, space, H5P_DEFAULT, raw.data());
+  }
+  H5Tclose(type);
+  H5Sclose(space);
+  H5Dclose(ds);
+  return out;
+}
+
+double ReadDoubleAttribute(hid_t file, const std::string& name) {
+  double v = -12345;
+  hid_t a = H5Aopen(file, name.c_str(), H5P_DEFAULT);
+  EXPECT_GE(a, 0) << name;
+  EXPECT_GE(H5Aread(a, H5T_NATIVE_DOUBLE, &v), 0);
+  H5Aclose(a);
+  return v;
+}
+
+long long ReadIntAttribute(hid_t file, const std::string& name) {
+  long long v = -12345;
+  hid_t a = H5Aopen(file, name.c_str(), H5P_DEFAULT);
+  EXPECT_GE(a, 0) << name;
+  hid_t type = H5Aget_type(a);
+  EXPECT_EQ(H5Tget_class(type), H5T_INTEGER) << name;
+  H5Tclose(type);
+  EXPECT_GE(H5Aread(a, H5T_NATIVE_LLONG, &v), 0);
+  H5Aclose(a);
+  return v;
+}
+
+std::string ReadStringAttribute(hid_t file, const std::string& name) {
+  hid_t a = H5Aopen(file, name.c_str(), H5P_DEFAULT);
+  EXPECT_GE(a, 0) << name;
+  hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, H5T_VARIABLE);
+  H5Tset_cset(type, H5T_CSET_UTF8);
+  char* s = nullptr;
+  EXPECT_GE(H5Aread(a, type, &s), 0);
+  std::string out = s ? s : "";
+  H5free_memory(s);
+  H5Tclose(type);
+  H5Aclose(a);
+  return out;
+}
+
+ResultsLayout SmallLayout() {
+  ResultsLayout layout;
+  layout.q_names = {"b.x", "b.y", "b.z", "b.e0", "b.e1", "b.e2", "b.e3"};
+  layout.lambda_names = {"hinge.x", "b.euler_norm"};
+  layout.bodies = {"b"};
+  layout.measures = {"angle", "height"};
+  layout.joints = {"hinge"};
+  layout.forces = {"spring"};
+  return layout;
+}
+
+// Row k: every value is 1000 * k + its index, so the read-back can be checked entry by entry.
+struct RowData {
+  std::vector<double> q, v, a, lambda, body, measures, joints, forces;
+  explicit RowData(int k) {
+    auto fill = [k](int n, double base) {
+      std::vector<double> x(n);
+      for (int i = 0; i < n; ++i) x[i] = 1000.0 * k + base + i;
+      return x;
+    };
+    q = fill(7, 0);
+    v = fill(7, 100);
+    a = fill(7, 200);
+    lambda = fill(2, 300);
+    body = fill(13, 400);
+    measures = fill(2, 500);
+    joints = fill(6, 600);
+    forces = fill(6, 700);
+  }
+  ResultsRow Row(double t) const {
+    ResultsRow r;
+    r.t = t;
+    r.q = q.data();
+    r.v = v.data();
+    r.a = a.data();
+    r.lambda = lambda.data();
+    r.body_data = body.data();
+    r.measures = measures.data();
+    r.joint_data = joints.data();
+    r.force_data = forces.data();
+    r.kinetic_energy = 10 + t;
+    r.potential_energy = -20 - t;
+    r.position_violation = 1e-12 * (1 + t);
+    r.velocity_violation = 1e-11 * (1 + t);
+    return r;
+  }
+};
+
+TEST(ResultsFile, RoundTripOfEveryDatasetAndAttribute) {
+  const std::string path = TempPath("roundtrip");
+  const int kRows = 5;
+  {
+    ResultsFile file(path, SmallLayout());
+    for (int k = 0; k < kRows; ++k) {
+      RowData d(k);
+      file.AppendRow(d.Row(0.1 * k));
+    }
+    EXPECT_EQ(file.rows(), kRows);
+    file.SetAttribute("model", std::string("models/pendulum.yaml"));
+    file.SetAttribute("hht_alpha", -0.1);
+    file.SetAttribute("steps_accepted", 42L);
+    file.SetAttribute("status", "running");
+    file.SetAttribute("status", "done");  // replaced
+    file.SetAttribute("redundant_constraint_names", std::vector<std::string>{"j.rx", "j.ry"});
+  }
+  hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  std::vector<hsize_t> dims;
+  auto time = ReadDoubles(f, "/time", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({kRows}));
+  for (int k = 0; k < kRows; ++k) EXPECT_DOUBLE_EQ(time[k], 0.1 * k);
+
+  struct Expect { const char* name; int cols; double base; int offset; };
+  const Expect expects[] = {
+      {"/q", 7, 0, 0},           {"/v", 7, 100, 0},
+      {"/a", 7, 200, 0},         {"/lambda", 2, 300, 0},
+      {"/bodies/b/position", 3, 400, 0},  {"/bodies/b/orientation", 4, 400, 3},
+      {"/bodies/b/velocity", 3, 400, 7},  {"/bodies/b/angular_velocity", 3, 400, 10},
+      {"/joints/hinge/force", 3, 600, 0}, {"/joints/hinge/torque", 3, 600, 3},
+      {"/forces/spring/force", 3, 700, 0}, {"/forces/spring/torque", 3, 700, 3},
+  };
+  for (const auto& e : expects) {
+    auto x = ReadDoubles(f, e.name, &dims);
+    ASSERT_EQ(dims, std::vector<hsize_t>({kRows, static_cast<hsize_t>(e.cols)})) << e.name;
+    for (int k = 0; k < kRows; ++k)
+      for (int c = 0; c < e.cols; ++c)
+        EXPECT_EQ(x[k * e.cols + c], 1000.0 * k + e.base + e.offset + c) << e.name;
+  }
+  for (int m = 0; m < 2; ++m) {
+    const std::string name = m == 0 ? "/measures/angle" : "/measures/height";
+    auto x = ReadDoubles(f, name, &dims);
+    ASSERT_EQ(dims, std::vector<hsize_t>({kRows})) << name;
+    for (int k = 0; k < kRows; ++k) EXPECT_EQ(x[k], 1000.0 * k + 500 + m);
+  }
+  auto ke = ReadDoubles(f, "/energy/kinetic", &dims);
+  auto pe = ReadDoubles(f, "/energy/potential", &dims);
+  auto pv = ReadDoubles(f, "/violation/position", &dims);
+  auto vv = ReadDoubles(f, "/violation/velocity", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({kRows}));
+  for (int k = 0; k < kRows; ++k) {
+    EXPECT_DOUBLE_EQ(ke[k], 10 + 0.1 * k);
+    EXPECT_DOUBLE_EQ(pe[k], -20 - 0.1 * k);
+    EXPECT_DOUBLE_EQ(pv[k], 1e-12 * (1 + 0.1 * k));
+    EXPECT_DOUBLE_EQ(vv[k], 1e-11 * (1 + 0.1 * k));
+  }
+  EXPECT_EQ(ReadStrings(f, "/q_names"), SmallLayout().q_names);
+  EXPECT_EQ(ReadStrings(f, "/lambda_names"), SmallLayout().lambda_names);
+  EXPECT_EQ(ReadIntAttribute(f, "format"), 1);
+  EXPECT_EQ(ReadIntAttribute(f, "steps_accepted"), 42);
+  EXPECT_DOUBLE_EQ(ReadDoubleAttribute(f, "hht_alpha"), -0.1);
+  EXPECT_EQ(ReadStringAttribute(f, "model"), "models/pendulum.yaml");
+  EXPECT_EQ(ReadStringAttribute(f, "status"), "done");
+  H5Fclose(f);
+  std::remove(path.c_str());
+}
+
+// A writer killed after three rows (no destructor, no close) leaves a readable file
+// with those rows: every row is flushed.
+TEST(ResultsFile, RowsSurviveAKilledWriter) {
+  const std::string path = TempPath("killed");
+  pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    try {
+      auto* file = new ResultsFile(path, SmallLayout());  // deliberately never deleted
+      for (int k = 0; k < 3; ++k) {
+        RowData d(k);
+        file->AppendRow(d.Row(0.5 * k));
+      }
+    } catch (...) {
+      _exit(1);
+    }
+    _exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0);
+  hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  std::vector<hsize_t> dims;
+  auto time = ReadDoubles(f, "/time", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({3}));
+  EXPECT_DOUBLE_EQ(time[2], 1.0);
+  auto q = ReadDoubles(f, "/q", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({3, 7}));
+  EXPECT_EQ(q[2 * 7 + 6], 2006.0);
+  H5Fclose(f);
+  std::remove(path.c_str());
+}
+
+// No constraints, no measures: zero-width datasets are still well formed.
+TEST(ResultsFile, EmptyLayoutParts) {
+  const std::string path = TempPath("empty");
+  ResultsLayout layout;
+  layout.q_names = {"b.x"};
+  {
+    ResultsFile file(path, layout);
+    const double q = 3.5;
+    ResultsRow row;
+    row.t = 0.25;
+    row.q = &q;
+    file.AppendRow(row);  // v, a null: zeros
+    file.AppendRow(row);
+  }
+  hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  std::vector<hsize_t> dims;
+  ReadDoubles(f, "/lambda", &dims);
+  EXPECT_EQ(dims, std::vector<hsize_t>({2, 0}));
+  auto q = ReadDoubles(f, "/q", &dims);
+  EXPECT_EQ(dims, std::vector<hsize_t>({2, 1}));
+  EXPECT_EQ(q[1], 3.5);
+  auto v = ReadDoubles(f, "/v", &dims);
+  EXPECT_EQ(v[0], 0.0);
+  EXPECT_TRUE(ReadStrings(f, "/lambda_names").empty());
+  H5Fclose(f);
+  std::remove(path.c_str());
+}
+
+TEST(ResultsFile, ErrorsNameThePath) {
+  try {
+    ResultsFile file("no_such_directory_xyz/out.h5", SmallLayout());
+    FAIL() << "expected an exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no_such_directory_xyz/out.h5"), std::string::npos)
+        << e.what();
+  }
+  ResultsLayout bad = SmallLayout();
+  bad.bodies = {"a/b"};
+  EXPECT_THROW(ResultsFile(TempPath("bad"), bad), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace mbdae::io
