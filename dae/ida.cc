@@ -1,1 +1,454 @@
 #include "dae/ida.h"
+
+#include <ida/ida.h>
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_context.h>
+#include <sunlinsol/sunlinsol_klu.h>
+#include <sunmatrix/sunmatrix_sparse.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "dae/ida_internal.h"
+
+namespace mbdae::dae {
+
+bool IdaOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& why) {
+    if (error) *error = "IdaOptions: " + why;
+    return false;
+  };
+  if (!(rtol > 0) || !std::isfinite(rtol)) return fail("rtol must be positive and finite");
+  if (!(atol > 0) || !std::isfinite(atol)) return fail("atol must be positive and finite");
+  if (!(max_step >= 0) || !std::isfinite(max_step)) return fail("max_step must be >= 0 (0: no limit)");
+  if (!(initial_step >= 0) || !std::isfinite(initial_step))
+    return fail("initial_step must be >= 0 (0: IDA chooses)");
+  if (max_order < 1 || max_order > 5) return fail("max_order must be in [1, 5]");
+  if (max_num_steps < 1) return fail("max_num_steps must be >= 1");
+  return true;
+}
+
+namespace internal {
+
+GglResidual::GglResidual(MechanicalSystem& system)
+    : system_(system), nq_(system.num_coordinates()), nc_(system.num_constraints()) {
+  const int nq = nq_, nc = nc_;
+  auto P = [&](Matrix m) -> const CscPattern& { return system_.pattern(m); };
+  std::vector<std::pair<int, int>> diag_q, minus_i_v;
+  for (int i = 0; i < nq; ++i) {
+    diag_q.push_back({i, i});
+    minus_i_v.push_back({i, nq + i});
+  }
+  const int lam = 2 * nq, mu = 2 * nq + nc;  // column offsets of lambda and mu
+  // Row block 1: q' - v + C_q^T mu.
+  b_cj_q_ = assembler_.AddEntries(diag_q);
+  b_minus_i_v_ = assembler_.AddEntries(minus_i_v);
+  b_tdq_mu_ = assembler_.AddBlock(P(Matrix::kConstraintTDq), 0, 0);
+  b_cqt_mu_ = assembler_.AddBlock(P(Matrix::kConstraintDq), 0, mu, /*transpose=*/true);
+  // Row block 2: M v' + C_q^T lambda - Q.
+  b_madq_ = assembler_.AddBlock(P(Matrix::kMassTimesAccDq), nq, 0);
+  b_tdq_lambda_ = assembler_.AddBlock(P(Matrix::kConstraintTDq), nq, 0);
+  b_fdq_ = assembler_.AddBlock(P(Matrix::kForceDq), nq, 0);
+  b_fdv_ = assembler_.AddBlock(P(Matrix::kForceDv), nq, nq);
+  b_mass_ = assembler_.AddBlock(P(Matrix::kMass), nq, nq);
+  b_cqt_lambda_ = assembler_.AddBlock(P(Matrix::kConstraintDq), nq, lam, /*transpose=*/true);
+  // Row block 3: C(q, t).
+  b_cq3_ = assembler_.AddBlock(P(Matrix::kConstraintDq), 2 * nq, 0);
+  // Row block 4: C_q v + C_t.
+  b_veldq_ = assembler_.AddBlock(P(Matrix::kConstraintVelDq), 2 * nq + nc, 0);
+  b_cq4_ = assembler_.AddBlock(P(Matrix::kConstraintDq), 2 * nq + nc, nq);
+  assembler_.Finalize(size(), size());
+
+  ones_.assign(nq, 1.0);
+  force_.assign(nq, 0.0);
+  constraint_.assign(nc, 0.0);
+  constraint_dt_.assign(nc, 0.0);
+  for (int m = 0; m < kNumMatrices; ++m) val_[m].assign(P(static_cast<Matrix>(m)).nnz(), 0.0);
+  tdq_mu_.assign(P(Matrix::kConstraintTDq).nnz(), 0.0);
+}
+
+int GglResidual::Residual(double t, const double* y, const double* yp, double* F) {
+  const int nq = nq_, nc = nc_;
+  const double* q = y;
+  const double* v = y + nq;
+  const double* lambda = y + 2 * nq;
+  const double* mu = y + 2 * nq + nc;
+  const double* qp = yp;
+  const double* vp = yp + nq;
+
+  EvalInput in;
+  in.t = t;
+  in.q = q;
+  in.v = v;
+  EvalOutput out;
+  out.force = force_.data();
+  out.constraint = constraint_.data();
+  out.constraint_dt = constraint_dt_.data();
+  out[Matrix::kMass] = val_[static_cast<int>(Matrix::kMass)].data();
+  out[Matrix::kConstraintDq] = val_[static_cast<int>(Matrix::kConstraintDq)].data();
+  const int code = system_.Evaluate(in, out);
+  if (code != 0) return code;
+
+  const CscPattern& pm = system_.pattern(Matrix::kMass);
+  const CscPattern& pc = system_.pattern(Matrix::kConstraintDq);
+  const double* mass = val_[static_cast<int>(Matrix::kMass)].data();
+  const double* cq = val_[static_cast<int>(Matrix::kConstraintDq)].data();
+
+  double* F1 = F;
+  double* F2 = F + nq;
+  double* F3 = F + 2 * nq;
+  double* F4 = F + 2 * nq + nc;
+  for (int i = 0; i < nq; ++i) {
+    F1[i] = qp[i] - v[i];
+    F2[i] = -force_[i];
+  }
+  MultiplyTransposeAdd(pc, cq, 1.0, mu, F1);
+  MultiplyAdd(pm, mass, 1.0, vp, F2);
+  MultiplyTransposeAdd(pc, cq, 1.0, lambda, F2);
+  for (int r = 0; r < nc; ++r) {
+    F3[r] = constraint_[r];
+    F4[r] = constraint_dt_[r];
+  }
+  MultiplyAdd(pc, cq, 1.0, v, F4);
+  return 0;
+}
+
+int GglResidual::Jacobian(double t, double cj, const double* y, const double* yp,
+                          double* values) {
+  const int nq = nq_, nc = nc_;
+  const double* q = y;
+  const double* v = y + nq;
+  const double* lambda = y + 2 * nq;
+  const double* mu = y + 2 * nq + nc;
+  const double* vp = yp + nq;
+
+  auto V = [&](Matrix m) { return val_[static_cast<int>(m)].data(); };
+  EvalInput in;
+  in.t = t;
+  in.q = q;
+  in.v = v;
+  in.a = vp;
+  in.w = mu;
+  {
+    // d(C_q^T mu)/dq needs its own evaluation (the weights differ from row block 2).
+    EvalOutput out;
+    out[Matrix::kConstraintTDq] = tdq_mu_.data();
+    const int code = system_.Evaluate(in, out);
+    if (code != 0) return code;
+  }
+  in.w = lambda;
+  EvalOutput out;
+  for (int m = 0; m < kNumMatrices; ++m) out.matrix[m] = val_[m].data();
+  const int code = system_.Evaluate(in, out);
+  if (code != 0) return code;
+
+  std::fill(values, values + assembler_.pattern().nnz(), 0.0);
+  assembler_.Accumulate(b_cj_q_, ones_.data(), cj, values);
+  assembler_.Accumulate(b_minus_i_v_, ones_.data(), -1.0, values);
+  assembler_.Accumulate(b_tdq_mu_, tdq_mu_.data(), 1.0, values);
+  assembler_.Accumulate(b_cqt_mu_, V(Matrix::kConstraintDq), 1.0, values);
+  assembler_.Accumulate(b_madq_, V(Matrix::kMassTimesAccDq), 1.0, values);
+  assembler_.Accumulate(b_tdq_lambda_, V(Matrix::kConstraintTDq), 1.0, values);
+  assembler_.Accumulate(b_fdq_, V(Matrix::kForceDq), -1.0, values);
+  assembler_.Accumulate(b_fdv_, V(Matrix::kForceDv), -1.0, values);
+  assembler_.Accumulate(b_mass_, V(Matrix::kMass), cj, values);
+  assembler_.Accumulate(b_cqt_lambda_, V(Matrix::kConstraintDq), 1.0, values);
+  assembler_.Accumulate(b_cq3_, V(Matrix::kConstraintDq), 1.0, values);
+  assembler_.Accumulate(b_veldq_, V(Matrix::kConstraintVelDq), 1.0, values);
+  assembler_.Accumulate(b_cq4_, V(Matrix::kConstraintDq), 1.0, values);
+  return 0;
+}
+
+}  // namespace internal
+
+namespace {
+
+// RAII owners of the SUNDIALS objects.
+struct ContextDeleter {
+  void operator()(SUNContext c) const { SUNContext_Free(&c); }
+};
+struct VectorDeleter {
+  void operator()(N_Vector v) const { N_VDestroy(v); }
+};
+struct MatrixDeleter {
+  void operator()(SUNMatrix m) const { SUNMatDestroy(m); }
+};
+struct LinearSolverDeleter {
+  void operator()(SUNLinearSolver s) const { SUNLinSolFree(s); }
+};
+struct IdaMemDeleter {
+  void operator()(void* mem) const { IDAFree(&mem); }
+};
+using ContextPtr = std::unique_ptr<std::remove_pointer_t<SUNContext>, ContextDeleter>;
+using VectorPtr = std::unique_ptr<std::remove_pointer_t<N_Vector>, VectorDeleter>;
+using MatrixPtr = std::unique_ptr<std::remove_pointer_t<SUNMatrix>, MatrixDeleter>;
+using LinearSolverPtr =
+    std::unique_ptr<std::remove_pointer_t<SUNLinearSolver>, LinearSolverDeleter>;
+using IdaMemPtr = std::unique_ptr<void, IdaMemDeleter>;
+
+class IdaIntegrator final : public Integrator {
+ public:
+  IdaIntegrator(MechanicalSystem& system, const IdaOptions& options)
+      : options_(options), ggl_(system) {
+    std::string error;
+    if (!options_.IsValid(&error)) throw std::invalid_argument(error);
+    static_assert(sizeof(sunindextype) == 8 || sizeof(sunindextype) == 4, "sunindextype");
+    const CscPattern& p = ggl_.jacobian_pattern();
+    col_start_.assign(p.col_start.begin(), p.col_start.end());
+    row_index_.assign(p.row_index.begin(), p.row_index.end());
+    values_.assign(p.nnz(), 0.0);
+    state_.Resize(ggl_.nq(), ggl_.nc());
+  }
+
+  void Initialize(const State& x0) override {
+    const int nq = ggl_.nq(), nc = ggl_.nc(), n = ggl_.size();
+    if (static_cast<int>(x0.q.size()) != nq || static_cast<int>(x0.v.size()) != nq ||
+        static_cast<int>(x0.a.size()) != nq || static_cast<int>(x0.lambda.size()) != nc) {
+      throw std::invalid_argument("IDA Initialize: the initial state has sizes (q " +
+                                  std::to_string(x0.q.size()) + ", v " +
+                                  std::to_string(x0.v.size()) + ", a " +
+                                  std::to_string(x0.a.size()) + ", lambda " +
+                                  std::to_string(x0.lambda.size()) + "), the system needs (" +
+                                  std::to_string(nq) + ", " + std::to_string(nq) + ", " +
+                                  std::to_string(nq) + ", " + std::to_string(nc) + ")");
+    }
+    // Tear down a previous run: counters start again from zero.
+    mem_.reset();
+    solver_.reset();
+    matrix_.reset();
+    id_.reset();
+    yp_.reset();
+    y_.reset();
+    context_.reset();
+    summary_ = Summary{};
+    callback_error_.clear();
+    ida_error_.clear();
+
+    SUNContext ctx = nullptr;
+    if (SUNContext_Create(nullptr, &ctx) != 0) throw std::runtime_error("IDA: SUNContext_Create failed");
+    context_.reset(ctx);
+    y_.reset(N_VNew_Serial(n, ctx));
+    yp_.reset(N_VNew_Serial(n, ctx));
+    id_.reset(N_VNew_Serial(n, ctx));
+    if (!y_ || !yp_ || !id_) throw std::runtime_error("IDA: N_VNew_Serial failed");
+    double* y = N_VGetArrayPointer(y_.get());
+    double* yp = N_VGetArrayPointer(yp_.get());
+    double* id = N_VGetArrayPointer(id_.get());
+    for (int i = 0; i < nq; ++i) {
+      y[i] = x0.q[i];
+      y[nq + i] = x0.v[i];
+      yp[i] = x0.v[i];  // q' = v since mu = 0
+      yp[nq + i] = x0.a[i];
+      id[i] = id[nq + i] = 1.0;
+    }
+    for (int r = 0; r < nc; ++r) {
+      y[2 * nq + r] = x0.lambda[r];
+      y[2 * nq + nc + r] = 0.0;  // mu
+      yp[2 * nq + r] = yp[2 * nq + nc + r] = 0.0;
+      id[2 * nq + r] = id[2 * nq + nc + r] = 0.0;
+    }
+
+    const sunindextype nnz = std::max<sunindextype>(1, static_cast<sunindextype>(values_.size()));
+    matrix_.reset(SUNSparseMatrix(n, n, nnz, CSC_MAT, ctx));
+    if (!matrix_) throw std::runtime_error("IDA: SUNSparseMatrix failed");
+    solver_.reset(SUNLinSol_KLU(y_.get(), matrix_.get(), ctx));
+    if (!solver_) throw std::runtime_error("IDA: SUNLinSol_KLU failed");
+
+    mem_.reset(IDACreate(ctx));
+    if (!mem_) throw std::runtime_error("IDA: IDACreate failed");
+    void* mem = mem_.get();
+    Check(IDASetErrHandlerFn(mem, &IdaIntegrator::ErrorHandler, this), "IDASetErrHandlerFn");
+    Check(IDAInit(mem, &IdaIntegrator::ResidualCallback, x0.t, y_.get(), yp_.get()), "IDAInit");
+    Check(IDASetUserData(mem, this), "IDASetUserData");
+    Check(IDASStolerances(mem, options_.rtol, options_.atol), "IDASStolerances");
+    Check(IDASetLinearSolver(mem, solver_.get(), matrix_.get()), "IDASetLinearSolver");
+    Check(IDASetJacFn(mem, &IdaIntegrator::JacobianCallback), "IDASetJacFn");
+    Check(IDASetId(mem, id_.get()), "IDASetId");
+    Check(IDASetSuppressAlg(mem, SUNTRUE), "IDASetSuppressAlg");
+    Check(IDASetMaxNumSteps(mem, options_.max_num_steps), "IDASetMaxNumSteps");
+    Check(IDASetMaxOrd(mem, options_.max_order), "IDASetMaxOrd");
+    if (options_.max_step > 0) Check(IDASetMaxStep(mem, options_.max_step), "IDASetMaxStep");
+    if (options_.initial_step > 0) Check(IDASetInitStep(mem, options_.initial_step), "IDASetInitStep");
+
+    state_ = x0;
+    summary_.status = Summary::Status::kRunning;
+    summary_.t_reached = x0.t;
+  }
+
+  bool AdvanceTo(double t_target) override {
+    if (!mem_) {
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = "IDA: AdvanceTo called before Initialize";
+      return false;
+    }
+    if (summary_.status == Summary::Status::kFailed) return false;
+    if (!(t_target > state_.t)) {
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = "IDA: AdvanceTo(" + ToString(t_target) +
+                         ") must go beyond the current time " + ToString(state_.t);
+      return false;
+    }
+    void* mem = mem_.get();
+    callback_error_.clear();
+    ida_error_.clear();
+    // Stop exactly at the target: the reported state is a solution of the DAE, not an
+    // interpolant, and the integration never steps beyond a requested time.
+    IDASetStopTime(mem, t_target);
+    double t_ret = state_.t;
+    const int flag = IDASolve(mem, t_target, &t_ret, y_.get(), yp_.get(), IDA_NORMAL);
+    UpdateCounters();
+    // On success and on failure IDA leaves (t_ret, y, y') at the last point reached.
+    CopyState(t_ret);
+    if (flag < 0) {
+      std::ostringstream os;
+      os << "IDA failed at t = " << ToString(t_ret) << " with " << IDAGetReturnFlagName(flag);
+      if (!callback_error_.empty()) os << ": " << callback_error_;
+      if (!ida_error_.empty()) os << " (" << ida_error_ << ")";
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = os.str();
+      return false;
+    }
+    summary_.status = Summary::Status::kRunning;
+    summary_.message.clear();
+    return true;
+  }
+
+  const State& state() const override { return state_; }
+  const Summary& summary() const override { return summary_; }
+  std::string name() const override { return "ida"; }
+
+ private:
+  static std::string ToString(double x) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.17g", x);
+    return buf;
+  }
+
+  static void Check(int flag, const char* what) {
+    if (flag != IDA_SUCCESS) {
+      throw std::runtime_error(std::string("IDA: ") + what + " failed with " +
+                               IDAGetReturnFlagName(flag));
+    }
+  }
+
+  void UpdateCounters() {
+    void* mem = mem_.get();
+    long steps = 0, etf = 0, ncf = 0, nni = 0, nje = 0, nsetups = 0, nre = 0, nrels = 0;
+    double h = 0;
+    IDAGetNumSteps(mem, &steps);
+    IDAGetNumErrTestFails(mem, &etf);
+    IDAGetNumNonlinSolvConvFails(mem, &ncf);
+    IDAGetNumNonlinSolvIters(mem, &nni);
+    IDAGetNumJacEvals(mem, &nje);
+    IDAGetNumLinSolvSetups(mem, &nsetups);
+    IDAGetNumResEvals(mem, &nre);
+    IDAGetNumLinResEvals(mem, &nrels);
+    IDAGetLastStep(mem, &h);
+    summary_.steps_accepted = steps;
+    summary_.steps_rejected = etf + ncf;
+    summary_.newton_iterations = nni;
+    summary_.jacobian_evaluations = nje;
+    // Every linear solver setup evaluates the Jacobian and refactors it with KLU.
+    summary_.factorizations = nsetups;
+    summary_.residual_evaluations = nre + nrels;
+    summary_.h_last = h;
+  }
+
+  void CopyState(double t) {
+    const int nq = ggl_.nq(), nc = ggl_.nc();
+    const double* y = N_VGetArrayPointer(y_.get());
+    const double* yp = N_VGetArrayPointer(yp_.get());
+    state_.t = t;
+    for (int i = 0; i < nq; ++i) {
+      state_.q[i] = y[i];
+      state_.v[i] = y[nq + i];
+      state_.a[i] = yp[nq + i];
+    }
+    for (int r = 0; r < nc; ++r) state_.lambda[r] = y[2 * nq + r];
+    summary_.t_reached = t;
+  }
+
+  // C callbacks: nothing may escape as an exception.
+  static int ResidualCallback(double t, N_Vector y, N_Vector yp, N_Vector F, void* user_data) {
+    auto* self = static_cast<IdaIntegrator*>(user_data);
+    try {
+      const int code = self->ggl_.Residual(t, N_VGetArrayPointer(y), N_VGetArrayPointer(yp),
+                                           N_VGetArrayPointer(F));
+      if (code != 0) self->NoteSystemError(code, t);
+      return code;
+    } catch (const std::exception& e) {
+      self->callback_error_ = std::string("exception in the residual: ") + e.what();
+    } catch (...) {
+      self->callback_error_ = "unknown exception in the residual";
+    }
+    return -1;
+  }
+
+  static int JacobianCallback(double t, double cj, N_Vector y, N_Vector yp, N_Vector /*r*/,
+                              SUNMatrix J, void* user_data, N_Vector, N_Vector, N_Vector) {
+    auto* self = static_cast<IdaIntegrator*>(user_data);
+    try {
+      // SUNMatZero clears the structure too: write it every time.
+      sunindextype* cols = SUNSparseMatrix_IndexPointers(J);
+      sunindextype* rows = SUNSparseMatrix_IndexValues(J);
+      double* data = SUNSparseMatrix_Data(J);
+      assert(SUNSparseMatrix_NNZ(J) >= static_cast<sunindextype>(self->values_.size()));
+      std::copy(self->col_start_.begin(), self->col_start_.end(), cols);
+      std::copy(self->row_index_.begin(), self->row_index_.end(), rows);
+      const int code =
+          self->ggl_.Jacobian(t, cj, N_VGetArrayPointer(y), N_VGetArrayPointer(yp), data);
+      if (code != 0) self->NoteSystemError(code, t);
+      return code;
+    } catch (const std::exception& e) {
+      self->callback_error_ = std::string("exception in the Jacobian: ") + e.what();
+    } catch (...) {
+      self->callback_error_ = "unknown exception in the Jacobian";
+    }
+    return -1;
+  }
+
+  static void ErrorHandler(int /*code*/, const char* module, const char* function, char* msg,
+                           void* user_data) {
+    auto* self = static_cast<IdaIntegrator*>(user_data);
+    try {
+      self->ida_error_ = std::string(module ? module : "") + "." + (function ? function : "") +
+                         ": " + (msg ? msg : "");
+    } catch (...) {
+    }
+  }
+
+  void NoteSystemError(int code, double t) {
+    const char* reason = ggl_.system().last_error();
+    callback_error_ = std::string(code > 0 ? "recoverable" : "unrecoverable") +
+                      " system error at t = " + ToString(t) +
+                      (reason && *reason ? std::string(": ") + reason : std::string());
+  }
+
+  IdaOptions options_;
+  internal::GglResidual ggl_;
+  std::vector<sunindextype> col_start_, row_index_;
+  std::vector<double> values_;
+  State state_;
+  Summary summary_;
+  std::string callback_error_, ida_error_;
+  // Destroyed in reverse order: IDA memory first, the context last.
+  ContextPtr context_;
+  VectorPtr y_, yp_, id_;
+  MatrixPtr matrix_;
+  LinearSolverPtr solver_;
+  IdaMemPtr mem_;
+};
+
+}  // namespace
+
+std::unique_ptr<Integrator> MakeIdaIntegrator(MechanicalSystem& system, const IdaOptions& options) {
+  return std::make_unique<IdaIntegrator>(system, options);
+}
+
+}  // namespace mbdae::dae
