@@ -53,8 +53,8 @@ class MultibodySystem final : public dae::MechanicalSystem {
   // (k/2 (l - l0)^2 - preload (l - l0)); forces of type force/torque have none.
   double KineticEnergy(const double* q, const double* v) const;
   double PotentialEnergy(double t, const double* q) const;
-  // Action of force element k on marker i, world axes.
-  void ForceAction(int force, double t, const double* q, const double* v, double* force,
+  // Action of force element `element` on marker i, world axes: force and torque (3 + 3).
+  void ForceAction(int element, double t, const double* q, const double* v, double* force,
                    double* torque) const;
 
  private:
