@@ -1,1 +1,833 @@
+// Model file reader, format 1 (YAML, via yaml-cpp). Every mapping's keys are checked
+// against the allowed ones, every scalar may be an expression, and every mistake is a
+// ModelError "FILE:LINE:COLUMN: ELEMENT: what is wrong" at the offending node.
 #include "mbs/loader.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <iomanip>
+#include <initializer_list>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "mbs/geometry.h"
+#include "mbs/kinematics.h"
+
+namespace mbdae::mbs {
+
+namespace {
+
+std::string FormatError(const SourceLocation& where, const std::string& element,
+                        const std::string& what) {
+  std::ostringstream s;
+  s << where.file << ":";
+  if (where.line > 0) s << where.line << ":" << where.column << ":";
+  s << " " << element << ": " << what;
+  return s.str();
+}
+
+std::string Num(double v) {
+  std::ostringstream s;
+  s << std::setprecision(10) << v;
+  return s.str();
+}
+
+std::string Join(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "(none)" : out;
+}
+
+// Levenshtein distance, for "did you mean" hints.
+int EditDistance(const std::string& a, const std::string& b) {
+  std::vector<int> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = static_cast<int>(j);
+  for (size_t i = 1; i <= a.size(); ++i) {
+    int diagonal = row[0];
+    row[0] = static_cast<int>(i);
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const int up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// "; did you mean 'x'?" if some candidate is close, else "".
+std::string Suggest(const std::string& name, const std::vector<std::string>& candidates) {
+  int best = 3;
+  std::string hit;
+  for (const std::string& c : candidates) {
+    const int d = EditDistance(name, c);
+    if (d < best) best = d, hit = c;
+  }
+  return hit.empty() ? "" : "; did you mean '" + hit + "'?";
+}
+
+bool IsIdentifier(const std::string& s) {
+  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
+  return true;
+}
+
+// Words an expression gives a meaning of its own: not usable as parameter or measure names.
+const std::set<std::string>& ReservedWords() {
+  static const std::set<std::string> words = {
+      "pi",   "t",    "spline", "sin",  "cos",  "tan",   "asin", "acos", "atan", "atan2",
+      "sinh", "cosh", "tanh",   "exp",  "log",  "sqrt",  "abs",  "sign", "min",  "max",
+      "pow",  "step"};
+  return words;
+}
+
+using Keys = std::initializer_list<const char*>;
+
+class Loader {
+ public:
+  Loader(std::string file, const LoadOptions& options) : file_(std::move(file)), options_(options) {}
+
+  Model Load(const std::string& text) {
+    YAML::Node root;
+    try {
+      root = YAML::Load(text);
+    } catch (const YAML::Exception& e) {
+      throw ModelError(At(e.mark), "model", "YAML syntax error: " + e.msg);
+    }
+    model_.file = file_;
+    if (!root.IsDefined() || root.IsNull()) {
+      throw ModelError(SourceLocation{file_, 1, 1}, "model",
+                       "the file is empty; a model is a mapping that starts with 'format: 1'");
+    }
+    if (!root.IsMap()) Fail(root, "model", "the top level must be a mapping (key: value), got " + Kind(root));
+
+    // The format first: a file of another format gets that message, not unknown keys.
+    const YAML::Node format = root["format"];
+    if (!format) Fail(root, "model", "missing required key 'format' (this version reads 'format: 1')");
+    const double version = LoadTimeNumber(format, "model", "format");
+    if (version != 1) Fail(format, "model", "unsupported format " + Num(version) + "; this version reads format 1");
+
+    CheckKeys(root, "model",
+              {"format", "name", "gravity", "parameters", "splines", "ground", "bodies", "measures",
+               "joints", "forces", "simulation"});
+    if (const YAML::Node splines = root["splines"]) {
+      Fail(splines, "model", "'splines' is not supported yet (splines come with a later release)");
+    }
+    if (const YAML::Node name = root["name"]) model_.name = String(name, "model", "name");
+
+    CollectMeasureNames(root["measures"]);
+    LoadParameters(root["parameters"]);
+    if (const YAML::Node gravity = root["gravity"]) model_.gravity = Vector3(gravity, "model", "gravity");
+    LoadGround(root["ground"]);
+    LoadBodies(root["bodies"]);
+    LoadMeasures(root["measures"]);
+    LoadJoints(root["joints"]);
+    LoadForces(root["forces"]);
+    LoadSimulation(root["simulation"]);
+    return std::move(model_);
+  }
+
+ private:
+  // ---- locations and failures ------------------------------------------------------
+
+  SourceLocation At(const YAML::Mark& mark) const {
+    SourceLocation where{file_, 0, 0};
+    if (mark.line >= 0) {
+      where.line = mark.line + 1;
+      where.column = mark.column + 1;
+    }
+    return where;
+  }
+  SourceLocation At(const YAML::Node& node) const { return At(node.Mark()); }
+
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& element, const std::string& what) const {
+    throw ModelError(At(node), element, what);
+  }
+
+  static std::string Kind(const YAML::Node& node) {
+    switch (node.Type()) {
+      case YAML::NodeType::Null: return "nothing";
+      case YAML::NodeType::Scalar: return "'" + node.Scalar() + "'";
+      case YAML::NodeType::Sequence: return "a list";
+      case YAML::NodeType::Map: return "a mapping";
+      default: return "nothing";
+    }
+  }
+
+  // ---- generic readers ---------------------------------------------------------------
+
+  // `node` must be a mapping whose keys are all in `allowed`, each once.
+  void CheckKeys(const YAML::Node& node, const std::string& element, Keys allowed,
+                 const std::string& what = "") const {
+    if (!node.IsMap()) {
+      Fail(node, element, (what.empty() ? std::string("expected") : "'" + what + "' must be") +
+                              " a mapping (key: value), got " + Kind(node));
+    }
+    std::vector<std::string> names;
+    for (const char* k : allowed) names.emplace_back(k);
+    std::set<std::string> seen;
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const YAML::Node key = it->first;
+      if (!key.IsScalar()) Fail(key, element, "a key must be a plain name, got " + Kind(key));
+      const std::string& k = key.Scalar();
+      if (std::find(names.begin(), names.end(), k) == names.end()) {
+        Fail(key, element, "unknown key '" + k + "'" + Suggest(k, names) + " (allowed keys: " + Join(names) + ")");
+      }
+      if (!seen.insert(k).second) Fail(key, element, "key '" + k + "' is given twice");
+    }
+  }
+
+  YAML::Node Required(const YAML::Node& map, const std::string& element, const char* key) const {
+    const YAML::Node value = map[key];
+    if (!value) Fail(map, element, std::string("missing required key '") + key + "'");
+    return value;
+  }
+
+  std::string String(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    if (!node.IsScalar()) Fail(node, element, "'" + key + "' must be a name (text), got " + Kind(node));
+    return node.Scalar();
+  }
+
+  bool Bool(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    if (node.IsScalar()) {
+      const std::string& s = node.Scalar();
+      if (s == "true" || s == "True" || s == "TRUE") return true;
+      if (s == "false" || s == "False" || s == "FALSE") return false;
+    }
+    Fail(node, element, "'" + key + "' must be true or false, got " + Kind(node));
+  }
+
+  // The scalar's text as an Expression over the parameters (measures reserved).
+  Expression Parse(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    if (!node.IsScalar()) {
+      Fail(node, element, "'" + key + "' must be a number or an expression, got " + Kind(node));
+    }
+    const std::string& text = node.Scalar();
+    try {
+      return Expression::Parse(text, symbols_);
+    } catch (const ExpressionError& e) {
+      Fail(node, element, "'" + key + "': in expression '" + text + "': " + e.what());
+    }
+  }
+
+  double LoadTimeNumber(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    const Expression e = Parse(node, element, key);
+    const double value = e.Evaluate(values_.data());
+    if (!std::isfinite(value)) {
+      Fail(node, element, "'" + key + "' evaluates to " + Num(value) + " ('" + node.Scalar() + "')");
+    }
+    return value;
+  }
+
+  std::vector<double> Numbers(const YAML::Node& node, const std::string& element, const std::string& key,
+                              std::initializer_list<size_t> lengths) const {
+    std::string expected;
+    for (size_t n : lengths) expected += (expected.empty() ? "" : " or ") + std::to_string(n);
+    if (!node.IsSequence()) {
+      Fail(node, element, "'" + key + "' must be a list of " + expected + " numbers, got " + Kind(node));
+    }
+    if (std::find(lengths.begin(), lengths.end(), node.size()) == lengths.end()) {
+      Fail(node, element, "'" + key + "' must have " + expected + " entries, got " + std::to_string(node.size()));
+    }
+    std::vector<double> out;
+    for (size_t k = 0; k < node.size(); ++k) out.push_back(LoadTimeNumber(node[k], element, key));
+    return out;
+  }
+
+  Vec3 Vector3(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    const std::vector<double> v = Numbers(node, element, key, {3});
+    return Vec3(v[0], v[1], v[2]);
+  }
+
+  template <typename E>
+  E Enum(const YAML::Node& node, const std::string& element, const std::string& key,
+         std::initializer_list<std::pair<const char*, E>> choices) const {
+    const std::string s = String(node, element, key);
+    std::vector<std::string> names;
+    for (const auto& [name, value] : choices) {
+      if (s == name) return value;
+      names.emplace_back(name);
+    }
+    Fail(node, element, "unknown " + key + " '" + s + "'" + Suggest(s, names) + " (allowed: " + Join(names) + ")");
+  }
+
+  // Orientation in one of the three forms: Euler parameters [e0, e1, e2, e3] (normalised
+  // when within 1e-6 of unit norm), {axis, angle}, {matrix} (orthonormal, det +1).
+  Quat Orientation(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    if (node.IsSequence()) {
+      const std::vector<double> v = Numbers(node, element, key, {4});
+      Quat e(v[0], v[1], v[2], v[3]);
+      const double n = e.norm();
+      if (!(std::abs(n - 1.0) <= 1e-6)) {
+        Fail(node, element, "'" + key + "': Euler parameters must have unit norm (within 1e-6), got norm " + Num(n));
+      }
+      return e / n;
+    }
+    if (node.IsMap()) {
+      if (node["matrix"]) {
+        CheckKeys(node, element, {"matrix"}, key);
+        const YAML::Node rows = node["matrix"];
+        if (!rows.IsSequence() || rows.size() != 3) {
+          Fail(rows, element, "'" + key + "': 'matrix' must be a list of 3 rows of 3 numbers");
+        }
+        Mat3 A;
+        for (int r = 0; r < 3; ++r) {
+          const std::vector<double> row = Numbers(rows[r], element, key + " matrix row", {3});
+          for (int c = 0; c < 3; ++c) A(r, c) = row[c];
+        }
+        const double orthogonality = (A.transpose() * A - Mat3::Identity()).cwiseAbs().maxCoeff();
+        if (!(orthogonality <= 1e-9)) {
+          Fail(rows, element, "'" + key + "': the matrix is not orthonormal (|A^T A - I| = " + Num(orthogonality) +
+                                  ", tolerance 1e-9)");
+        }
+        const double det = A.determinant();
+        if (!(std::abs(det - 1.0) <= 1e-9)) {
+          Fail(rows, element, "'" + key + "': the matrix is not a rotation (determinant " + Num(det) + ", must be +1)");
+        }
+        return QuaternionFromMatrix(A);
+      }
+      CheckKeys(node, element, {"axis", "angle"}, key);
+      const Vec3 axis = Vector3(Required(node, element, "axis"), element, key + " axis");
+      const double angle = LoadTimeNumber(Required(node, element, "angle"), element, key + " angle");
+      if (!(axis.norm() > 0)) Fail(node["axis"], element, "'" + key + "': the rotation axis must not be zero");
+      return QuaternionFromAxisAngle(axis, angle);
+    }
+    Fail(node, element,
+         "'" + key + "' must be Euler parameters [e0, e1, e2, e3], {axis: [x, y, z], angle: a} or "
+         "{matrix: [[...], [...], [...]]}, got " + Kind(node));
+  }
+
+  // ---- names ----------------------------------------------------------------------------
+
+  void CollectMeasureNames(const YAML::Node& measures) {
+    if (!measures || !measures.IsSequence()) return;
+    for (const YAML::Node& m : measures) {
+      if (m.IsMap() && m["name"] && m["name"].IsScalar()) symbols_.reserved.push_back(m["name"].Scalar());
+    }
+  }
+
+  // Marker by full name "BODY.MARKER" / "ground.MARKER".
+  int Marker(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    const std::string name = String(node, element, key);
+    const int index = model_.find_marker(name);
+    if (index >= 0) return index;
+    const size_t dot = name.find('.');
+    if (dot == std::string::npos) {
+      Fail(node, element, "'" + key + "': marker '" + name + "' must be written BODY.MARKER (e.g. ground.O, " +
+                              (model_.bodies.empty() ? std::string("crank") : model_.bodies[0].name) + ".cm)");
+    }
+    const std::string body = name.substr(0, dot), marker = name.substr(dot + 1);
+    std::vector<std::string> bodies{"ground"};
+    for (const Body& b : model_.bodies) bodies.push_back(b.name);
+    const int b = body == "ground" ? -1 : model_.find_body(body);
+    if (body != "ground" && b < 0) {
+      Fail(node, element, "'" + key + "': unknown body '" + body + "' in marker '" + name + "'" + Suggest(body, bodies) +
+                              " (bodies: " + Join(bodies) + ")");
+    }
+    std::vector<std::string> markers;
+    for (const mbs::Marker& m : model_.markers) {
+      if (m.body == b) markers.push_back(m.name.substr(m.name.find('.') + 1));
+    }
+    Fail(node, element, "'" + key + "': unknown marker '" + name + "'" + Suggest(marker, markers) + " (markers of " +
+                            body + ": " + Join(markers) + ")");
+  }
+
+  // ---- parameters -------------------------------------------------------------------
+
+  void LoadParameters(const YAML::Node& node) {
+    std::vector<YAML::Node> value_nodes;
+    std::vector<std::string> names;
+    if (node) {
+      if (!node.IsMap()) Fail(node, "model", "'parameters' must be a mapping {name: value}, got " + Kind(node));
+      std::set<std::string> seen;
+      for (auto it = node.begin(); it != node.end(); ++it) {
+        const YAML::Node key = it->first;
+        if (!key.IsScalar()) Fail(key, "model", "a parameter name must be a plain name, got " + Kind(key));
+        const std::string& name = key.Scalar();
+        const std::string element = "parameter '" + name + "'";
+        if (!IsIdentifier(name)) {
+          Fail(key, element, "a parameter name must be letters, digits and '_', not starting with a digit");
+        }
+        if (ReservedWords().count(name)) Fail(key, element, "'" + name + "' is reserved in expressions");
+        if (!seen.insert(name).second) Fail(key, element, "duplicate parameter name");
+        for (const std::string& m : symbols_.reserved) {
+          if (m == name) Fail(key, element, "a measure has the same name; names in expressions must be unique");
+        }
+        Parameter p;
+        p.name = name;
+        p.where = At(key);
+        model_.parameters.push_back(p);
+        names.push_back(name);
+        value_nodes.push_back(it->second);
+      }
+    }
+    for (const auto& [name, value] : options_.parameter_overrides) {
+      if (std::find(names.begin(), names.end(), name) == names.end()) {
+        throw ModelError(node ? At(node) : SourceLocation{file_, 0, 0}, "parameter '" + name + "'",
+                         "cannot set '" + name + "=" + Num(value) + "': the model has no such parameter" +
+                             Suggest(name, names) + " (parameters: " + Join(names) + ")");
+      }
+    }
+
+    // Every parameter may use any other one: parse all, then evaluate in dependency
+    // order (depth-first), reporting a cycle by its path.
+    symbols_.parameters = names;
+    const size_t n = names.size();
+    std::vector<Expression> expressions(n);
+    for (size_t k = 0; k < n; ++k) {
+      const std::string element = "parameter '" + names[k] + "'";
+      expressions[k] = Parse(value_nodes[k], element, names[k]);
+      const std::string& text = value_nodes[k].Scalar();
+      char* end = nullptr;
+      std::strtod(text.c_str(), &end);
+      if (end == text.c_str() || *end != '\0') model_.parameters[k].expression = text;
+    }
+    values_.assign(n, 0.0);
+    std::vector<int> state(n, 0);  // 0 not yet, 1 being evaluated, 2 done
+    std::vector<int> path;
+    std::function<void(int)> visit = [&](int k) {
+      if (state[k] == 2) return;
+      if (state[k] == 1) {
+        std::string cycle;
+        auto from = std::find(path.begin(), path.end(), k);
+        for (auto it = from; it != path.end(); ++it) cycle += names[*it] + " -> ";
+        cycle += names[k];
+        Fail(value_nodes[k], "parameter '" + names[k] + "'", "parameters depend on each other in a cycle: " + cycle);
+      }
+      const auto override_it = options_.parameter_overrides.find(names[k]);
+      if (override_it != options_.parameter_overrides.end()) {
+        values_[k] = override_it->second;
+      } else {
+        state[k] = 1;
+        path.push_back(k);
+        for (int dep : expressions[k].parameters_used()) visit(dep);
+        path.pop_back();
+        values_[k] = expressions[k].Evaluate(values_.data());
+        if (!std::isfinite(values_[k])) {
+          Fail(value_nodes[k], "parameter '" + names[k] + "'",
+               "evaluates to " + Num(values_[k]) + " ('" + value_nodes[k].Scalar() + "')");
+        }
+      }
+      state[k] = 2;
+    };
+    for (size_t k = 0; k < n; ++k) visit(static_cast<int>(k));
+    for (size_t k = 0; k < n; ++k) model_.parameters[k].value = values_[k];
+  }
+
+  // ---- markers, ground, bodies ---------------------------------------------------
+
+  mbs::Marker LoadMarker(const YAML::Node& node, const std::string& element, int body,
+                         const std::string& full_name) const {
+    CheckKeys(node, element, {"position", "orientation"});
+    mbs::Marker m;
+    m.name = full_name;
+    m.body = body;
+    m.where = At(node);
+    if (const YAML::Node p = node["position"]) m.position = Vector3(p, element, "position");
+    if (const YAML::Node o = node["orientation"]) m.orientation = RotationMatrix(Orientation(o, element, "orientation"));
+    return m;
+  }
+
+  // The implicit markers (ground.O, BODY.cm) may be listed, but only where they are.
+  void CheckImplicit(const YAML::Node& node, const mbs::Marker& m, const std::string& element,
+                     const std::string& what) const {
+    if (m.position.norm() != 0 || (m.orientation - Mat3::Identity()).cwiseAbs().maxCoeff() > 1e-12) {
+      Fail(node, element, "marker '" + m.name + "' is " + what + " and cannot be moved or rotated");
+    }
+  }
+
+  void LoadGround(const YAML::Node& node) {
+    mbs::Marker origin;
+    origin.name = "ground.O";
+    origin.where = SourceLocation{file_, 0, 0};
+    model_.markers.push_back(origin);
+    if (!node) return;
+    CheckKeys(node, "ground", {"markers"}, "ground");
+    const YAML::Node markers = node["markers"];
+    if (!markers) return;
+    if (!markers.IsMap()) Fail(markers, "ground", "'markers' must be a mapping {NAME: {position, orientation}}");
+    for (auto it = markers.begin(); it != markers.end(); ++it) {
+      const std::string name = String(it->first, "ground", "marker name");
+      const std::string element = "ground marker '" + name + "'";
+      CheckMarkerName(it->first, element, name);
+      const mbs::Marker m = LoadMarker(it->second, element, -1, "ground." + name);
+      if (name == "O") {
+        CheckImplicit(it->second, m, element, "the world origin with world axes");
+        continue;
+      }
+      if (model_.find_marker(m.name) >= 0) Fail(it->first, element, "duplicate marker name");
+      model_.markers.push_back(m);
+    }
+  }
+
+  void CheckMarkerName(const YAML::Node& node, const std::string& element, const std::string& name) const {
+    if (name.empty() || name.find('.') != std::string::npos || name.find_first_of(" \t") != std::string::npos) {
+      Fail(node, element, "a marker name must be non-empty, without '.' or spaces");
+    }
+  }
+
+  void LoadBodies(const YAML::Node& node) {
+    if (!node) return;
+    if (!node.IsSequence()) Fail(node, "model", "'bodies' must be a list, got " + Kind(node));
+    for (size_t k = 0; k < node.size(); ++k) LoadBody(node[k], static_cast<int>(k));
+  }
+
+  void LoadBody(const YAML::Node& node, int index) {
+    std::string element = "body #" + std::to_string(index + 1);
+    if (!node.IsMap()) Fail(node, element, "a body must be a mapping, got " + Kind(node));
+    if (const YAML::Node name = node["name"]) element = "body '" + String(name, element, "name") + "'";
+    CheckKeys(node, element,
+              {"name", "mass", "inertia", "geometry", "position", "orientation", "velocity", "angular_velocity",
+               "markers"});
+    Body body;
+    body.name = String(Required(node, element, "name"), element, "name");
+    body.where = At(node);
+    if (body.name.empty() || body.name.find('.') != std::string::npos ||
+        body.name.find_first_of(" \t") != std::string::npos) {
+      Fail(node["name"], element, "a body name must be non-empty, without '.' or spaces");
+    }
+    if (body.name == "ground") Fail(node["name"], element, "'ground' is reserved for the fixed frame");
+    if (model_.find_body(body.name) >= 0) Fail(node["name"], element, "duplicate body name");
+
+    // Mass properties: explicit values win; a geometry with a density gives the rest.
+    std::optional<MassProperties> from_geometry;
+    if (const YAML::Node g = node["geometry"]) from_geometry = Geometry(g, element);
+    if (from_geometry) {
+      body.mass = from_geometry->mass;
+      body.inertia = from_geometry->inertia;
+    }
+    if (const YAML::Node m = node["mass"]) {
+      body.mass = LoadTimeNumber(m, element, "mass");
+      if (body.mass < 0) Fail(m, element, "mass must be >= 0, got " + Num(body.mass));
+    }
+    if (const YAML::Node in = node["inertia"]) {
+      const std::vector<double> v = Numbers(in, element, "inertia", {3, 6});
+      body.inertia = Mat3::Zero();
+      body.inertia.diagonal() << v[0], v[1], v[2];
+      if (v.size() == 6) {  // tensor entries [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
+        body.inertia(0, 1) = body.inertia(1, 0) = v[3];
+        body.inertia(0, 2) = body.inertia(2, 0) = v[4];
+        body.inertia(1, 2) = body.inertia(2, 1) = v[5];
+      }
+      const Eigen::SelfAdjointEigenSolver<Mat3> eig(body.inertia, Eigen::EigenvaluesOnly);
+      const double smallest = eig.eigenvalues()[0], largest = eig.eigenvalues()[2];
+      if (smallest < -1e-12 * std::max(1.0, std::abs(largest))) {
+        Fail(in, element, "inertia is not positive semi-definite (smallest eigenvalue " + Num(smallest) + ")");
+      }
+    }
+    if (const YAML::Node p = node["position"]) body.position = Vector3(p, element, "position");
+    if (const YAML::Node o = node["orientation"]) body.orientation = Orientation(o, element, "orientation");
+    if (const YAML::Node v = node["velocity"]) body.velocity = Vector3(v, element, "velocity");
+    if (const YAML::Node w = node["angular_velocity"]) body.angular_velocity = Vector3(w, element, "angular_velocity");
+
+    const int b = static_cast<int>(model_.bodies.size());
+    mbs::Marker cm;
+    cm.name = body.name + ".cm";
+    cm.body = b;
+    cm.where = body.where;
+    body.cm_marker = static_cast<int>(model_.markers.size());
+    model_.markers.push_back(cm);
+    model_.bodies.push_back(body);
+
+    if (const YAML::Node markers = node["markers"]) {
+      if (!markers.IsMap()) Fail(markers, element, "'markers' must be a mapping {NAME: {position, orientation}}");
+      for (auto it = markers.begin(); it != markers.end(); ++it) {
+        const std::string name = String(it->first, element, "marker name");
+        const std::string marker_element = element + ", marker '" + name + "'";
+        CheckMarkerName(it->first, marker_element, name);
+        const mbs::Marker m = LoadMarker(it->second, marker_element, b, body.name + "." + name);
+        if (name == "cm") {
+          CheckImplicit(it->second, m, marker_element, "the centre of mass with body axes");
+          continue;
+        }
+        if (model_.find_marker(m.name) >= 0) Fail(it->first, marker_element, "duplicate marker name");
+        model_.markers.push_back(m);
+      }
+    }
+  }
+
+  // Geometry: mass properties if it has a density.
+  std::optional<MassProperties> Geometry(const YAML::Node& node, const std::string& element) const {
+    if (!node.IsMap()) Fail(node, element, "'geometry' must be a mapping {shape: ...}, got " + Kind(node));
+    enum Shape { kSphere, kCylinder, kCone, kBox, kMesh };
+    const Shape shape = Enum<Shape>(Required(node, element, "shape"), element, "shape",
+                                    {{"sphere", kSphere}, {"cylinder", kCylinder}, {"cone", kCone}, {"box", kBox},
+                                     {"mesh", kMesh}});
+    if (shape == kMesh) {
+      Fail(node["shape"], element, "geometry shape 'mesh' is not supported yet (meshes come with a later release)");
+    }
+    switch (shape) {
+      case kSphere: CheckKeys(node, element, {"shape", "radius", "density"}, "geometry"); break;
+      case kCylinder:
+      case kCone: CheckKeys(node, element, {"shape", "radius", "length", "density"}, "geometry"); break;
+      default: CheckKeys(node, element, {"shape", "size", "density"}, "geometry"); break;
+    }
+    auto positive = [&](const char* key) {
+      const YAML::Node v = Required(node, element, key);
+      const double x = LoadTimeNumber(v, element, std::string("geometry ") + key);
+      if (!(x > 0)) Fail(v, element, std::string("geometry ") + key + " must be > 0, got " + Num(x));
+      return x;
+    };
+    const double radius = shape == kBox ? 0 : positive("radius");
+    const double length = (shape == kCylinder || shape == kCone) ? positive("length") : 0;
+    Vec3 size = Vec3::Zero();
+    if (shape == kBox) {
+      const YAML::Node s = Required(node, element, "size");
+      size = Vector3(s, element, "geometry size");
+      if (!(size.minCoeff() > 0)) Fail(s, element, "geometry size must be > 0 along each axis");
+    }
+    const YAML::Node d = node["density"];
+    if (!d) return std::nullopt;
+    const double density = LoadTimeNumber(d, element, "geometry density");
+    if (!(density >= 0)) Fail(d, element, "geometry density must be >= 0, got " + Num(density));
+    switch (shape) {
+      case kSphere: return SphereMass(radius, density);
+      case kCylinder: return CylinderMass(radius, length, density);
+      case kCone: return ConeMass(radius, length, density);
+      default: return BoxMass(size, density);
+    }
+  }
+
+  // ---- measures, joints, forces -------------------------------------------------
+
+  // Reads `name` of a list item; returns the element text.
+  std::string ItemName(const YAML::Node& node, const char* kind, size_t index, std::string* name) const {
+    std::string element = std::string(kind) + " #" + std::to_string(index + 1);
+    if (!node.IsMap()) Fail(node, element, std::string("a ") + kind + " must be a mapping, got " + Kind(node));
+    *name = String(Required(node, element, "name"), element, "name");
+    return std::string(kind) + " '" + *name + "'";
+  }
+
+  void LoadMeasures(const YAML::Node& node) {
+    if (!node) return;
+    if (!node.IsSequence()) Fail(node, "model", "'measures' must be a list, got " + Kind(node));
+    for (size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node m = node[k];
+      Measure measure;
+      const std::string element = ItemName(m, "measure", k, &measure.name);
+      measure.where = At(m);
+      if (!IsIdentifier(measure.name)) {
+        Fail(m["name"], element, "a measure name must be letters, digits and '_' (it is used in expressions)");
+      }
+      if (ReservedWords().count(measure.name)) Fail(m["name"], element, "'" + measure.name + "' is reserved in expressions");
+      if (model_.find_measure(measure.name) >= 0) Fail(m["name"], element, "duplicate measure name");
+      measure.type = Enum<MeasureType>(Required(m, element, "type"), element, "type",
+                                       {{"translational", MeasureType::kTranslational},
+                                        {"rotational", MeasureType::kRotational}});
+      if (measure.type == MeasureType::kTranslational) {
+        CheckKeys(m, element, {"name", "type", "i", "j", "component", "frame", "quantity", "offset_initial"});
+        measure.component = Enum<Component>(Required(m, element, "component"), element, "component",
+                                            {{"x", Component::kX}, {"y", Component::kY}, {"z", Component::kZ},
+                                             {"distance", Component::kDistance}});
+        if (const YAML::Node f = m["frame"]) {
+          measure.frame = Enum<MeasureFrame>(f, element, "frame", {{"j", MeasureFrame::kJ}, {"world", MeasureFrame::kWorld}});
+        }
+        if (const YAML::Node q = m["quantity"]) {
+          measure.quantity = Enum<Quantity>(q, element, "quantity",
+                                            {{"position", Quantity::kPosition}, {"velocity", Quantity::kVelocity},
+                                             {"acceleration", Quantity::kAcceleration}});
+        }
+      } else {
+        CheckKeys(m, element, {"name", "type", "i", "j", "axis", "quantity", "offset_initial"});
+        measure.component = Enum<Component>(Required(m, element, "axis"), element, "axis",
+                                            {{"x", Component::kX}, {"y", Component::kY}, {"z", Component::kZ}});
+        if (const YAML::Node q = m["quantity"]) {
+          measure.quantity = Enum<Quantity>(q, element, "quantity",
+                                            {{"angle", Quantity::kPosition},
+                                             {"angular_velocity", Quantity::kVelocity},
+                                             {"angular_acceleration", Quantity::kAcceleration}});
+        }
+      }
+      measure.i = Marker(Required(m, element, "i"), element, "i");
+      measure.j = m["j"] ? Marker(m["j"], element, "j") : 0;
+      if (const YAML::Node o = m["offset_initial"]) measure.offset_initial = Bool(o, element, "offset_initial");
+      model_.measures.push_back(measure);
+    }
+  }
+
+  void LoadJoints(const YAML::Node& node) {
+    if (!node) return;
+    if (!node.IsSequence()) Fail(node, "model", "'joints' must be a list, got " + Kind(node));
+    for (size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node n = node[k];
+      Joint joint;
+      const std::string element = ItemName(n, "joint", k, &joint.name);
+      joint.where = At(n);
+      for (const Joint& other : model_.joints) {
+        if (other.name == joint.name) Fail(n["name"], element, "duplicate joint name");
+      }
+      enum JointKind { kFixed, kSpherical, kRevolute, kPrismatic, kCylindrical, kUniversal, kPlanar, kGeneric, kMotion, kGear };
+      const YAML::Node type_node = Required(n, element, "type");
+      const JointKind type = Enum<JointKind>(type_node, element, "joint type",
+                                   {{"fixed", kFixed}, {"spherical", kSpherical}, {"revolute", kRevolute},
+                                    {"prismatic", kPrismatic}, {"cylindrical", kCylindrical},
+                                    {"universal", kUniversal}, {"planar", kPlanar}, {"generic", kGeneric},
+                                    {"motion", kMotion}, {"gear", kGear}});
+      if (type == kMotion || type == kGear) {
+        Fail(type_node, element, "joint type '" + type_node.Scalar() +
+                                     "' is not supported yet (motion and gear joints come with a later release)");
+      }
+      // Locks per type, in marker j's axes (model format, "Joints").
+      constexpr unsigned kAllT = kLockX | kLockY | kLockZ, kAllR = kLockRx | kLockRy | kLockRz;
+      switch (type) {
+        case kFixed: joint.type = JointType::kFixed; joint.locks = kAllT | kAllR; break;
+        case kSpherical: joint.type = JointType::kSpherical; joint.locks = kAllT; break;
+        case kRevolute: joint.type = JointType::kRevolute; joint.locks = kAllT | kLockRx | kLockRy; break;
+        case kPrismatic: joint.type = JointType::kPrismatic; joint.locks = kLockX | kLockY | kAllR; break;
+        case kCylindrical:
+          joint.type = JointType::kCylindrical;
+          joint.locks = kLockX | kLockY | kLockRx | kLockRy;
+          break;
+        case kUniversal: joint.type = JointType::kUniversal; joint.locks = kAllT | kLockRz; break;
+        case kPlanar: joint.type = JointType::kPlanar; joint.locks = kLockZ | kLockRx | kLockRy; break;
+        default: joint.type = JointType::kGeneric; break;
+      }
+      if (type == kGeneric) {
+        CheckKeys(n, element, {"name", "type", "i", "j", "lock"});
+        const YAML::Node lock = Required(n, element, "lock");
+        if (!lock.IsSequence() || lock.size() == 0) {
+          Fail(lock, element, "'lock' must be a non-empty list of x, y, z, rx, ry, rz, got " + Kind(lock));
+        }
+        for (const YAML::Node& l : lock) {
+          const unsigned bit = Enum<unsigned>(l, element, "lock", {{"x", kLockX}, {"y", kLockY}, {"z", kLockZ},
+                                                                  {"rx", kLockRx}, {"ry", kLockRy}, {"rz", kLockRz}});
+          if (joint.locks & bit) Fail(l, element, "'" + l.Scalar() + "' is locked twice");
+          joint.locks |= bit;
+        }
+      } else {
+        CheckKeys(n, element, {"name", "type", "i", "j"});
+      }
+      joint.i = Marker(Required(n, element, "i"), element, "i");
+      joint.j = Marker(Required(n, element, "j"), element, "j");
+      const int bi = model_.markers[joint.i].body, bj = model_.markers[joint.j].body;
+      if (bi == bj) {
+        Fail(n, element, "markers i and j are both on " +
+                             (bi < 0 ? std::string("ground") : "body '" + model_.bodies[bi].name + "'") +
+                             "; a joint connects two different bodies");
+      }
+      model_.joints.push_back(joint);
+    }
+  }
+
+  void LoadForces(const YAML::Node& node) {
+    if (!node) return;
+    if (!node.IsSequence()) Fail(node, "model", "'forces' must be a list, got " + Kind(node));
+    for (size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node n = node[k];
+      Force force;
+      const std::string element = ItemName(n, "force", k, &force.name);
+      force.where = At(n);
+      for (const Force& other : model_.forces) {
+        if (other.name == force.name) Fail(n["name"], element, "duplicate force name");
+      }
+      enum ForceKind { kSpring, kForce, kTorque, kBushing, kUser };
+      const YAML::Node type_node = Required(n, element, "type");
+      const ForceKind type = Enum<ForceKind>(type_node, element, "force type",
+                                   {{"spring_damper", kSpring}, {"force", kForce}, {"torque", kTorque},
+                                    {"bushing", kBushing}, {"user", kUser}});
+      if (type == kBushing || type == kUser) {
+        Fail(type_node, element, "force type '" + type_node.Scalar() +
+                                     "' is not supported yet (bushing and user forces come with a later release)");
+      }
+      if (type == kSpring) {
+        force.type = ForceType::kSpringDamper;
+        CheckKeys(n, element, {"name", "type", "i", "j", "stiffness", "damping", "free_length", "preload"});
+        force.stiffness = Parse(Required(n, element, "stiffness"), element, "stiffness");
+        force.free_length = Parse(Required(n, element, "free_length"), element, "free_length");
+        force.damping = n["damping"] ? Parse(n["damping"], element, "damping") : Expression::Constant(0);
+        force.preload = n["preload"] ? Parse(n["preload"], element, "preload") : Expression::Constant(0);
+      } else {
+        force.type = type == kForce ? ForceType::kForce : ForceType::kTorque;
+        CheckKeys(n, element, {"name", "type", "i", "j", "frame", "value"});
+        if (const YAML::Node f = n["frame"]) {
+          force.frame = Enum<ForceFrame>(f, element, "frame",
+                                         {{"world", ForceFrame::kWorld}, {"i", ForceFrame::kI}, {"j", ForceFrame::kJ}});
+        }
+        const YAML::Node value = Required(n, element, "value");
+        if (!value.IsSequence() || value.size() != 3) {
+          Fail(value, element, "'value' must be a list of 3 numbers or expressions, got " +
+                                   (value.IsSequence() ? std::to_string(value.size()) + " entries" : Kind(value)));
+        }
+        for (int c = 0; c < 3; ++c) force.value[c] = Parse(value[c], element, "value");
+      }
+      force.i = Marker(Required(n, element, "i"), element, "i");
+      force.j = n["j"] ? Marker(n["j"], element, "j") : 0;
+      model_.forces.push_back(force);
+    }
+  }
+
+  // ---- simulation -------------------------------------------------------------------
+
+  void LoadSimulation(const YAML::Node& node) {
+    if (!node) return;
+    const std::string element = "simulation";
+    SimulationSettings& s = model_.simulation;
+    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida"}, "simulation");
+    auto positive = [&](const YAML::Node& n, const std::string& key) {
+      const double x = LoadTimeNumber(n, element, key);
+      if (!(x > 0)) Fail(n, element, key + " must be > 0, got " + Num(x));
+      return x;
+    };
+    if (const YAML::Node n = node["t_end"]) s.t_end = positive(n, "t_end");
+    if (const YAML::Node n = node["output_step"]) s.output_step = positive(n, "output_step");
+    if (const YAML::Node n = node["integrator"]) {
+      s.integrator = Enum<IntegratorKind>(n, element, "integrator", {{"hht", IntegratorKind::kHht}, {"ida", IntegratorKind::kIda}});
+    }
+    if (const YAML::Node h = node["hht"]) {
+      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified"}, "hht");
+      if (const YAML::Node n = h["alpha"]) {
+        s.hht_alpha = LoadTimeNumber(n, element, "alpha");
+        if (!(s.hht_alpha >= -1.0 / 3.0 - 1e-15 && s.hht_alpha <= 0)) {
+          Fail(n, element, "hht alpha must be in [-1/3, 0], got " + Num(s.hht_alpha));
+        }
+      }
+      if (const YAML::Node n = h["step"]) s.hht_step = positive(n, "hht step");
+      if (const YAML::Node n = h["adaptive"]) s.hht_adaptive = Bool(n, element, "adaptive");
+      if (const YAML::Node n = h["tolerance"]) s.hht_tolerance = positive(n, "hht tolerance");
+      if (const YAML::Node n = h["modified"]) s.hht_modified = Bool(n, element, "modified");
+    }
+    if (const YAML::Node i = node["ida"]) {
+      CheckKeys(i, element, {"rtol", "atol"}, "ida");
+      if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
+      if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
+    }
+  }
+
+  std::string file_;
+  const LoadOptions& options_;
+  Model model_;
+  SymbolTable symbols_;
+  std::vector<double> values_;  // parameter values, index as in symbols_.parameters
+};
+
+}  // namespace
+
+ModelError::ModelError(const SourceLocation& where, const std::string& element, const std::string& what)
+    : std::runtime_error(FormatError(where, element, what)), where_(where), element_(element) {}
+
+Model LoadModel(const std::string& path, const LoadOptions& options) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw ModelError(SourceLocation{path, 0, 0}, "model", std::string("cannot open the file: ") + std::strerror(errno));
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) {
+    throw ModelError(SourceLocation{path, 0, 0}, "model", std::string("cannot read the file: ") + std::strerror(errno));
+  }
+  return LoadModelFromString(text.str(), path, options);
+}
+
+Model LoadModelFromString(const std::string& text, const std::string& file, const LoadOptions& options) {
+  return Loader(file, options).Load(text);
+}
+
+}  // namespace mbdae::mbs

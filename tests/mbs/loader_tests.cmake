@@ -1,0 +1,8 @@
+# Tests of the model loader, expressions and primitive mass properties.
+foreach(name expression loader geometry)
+  add_executable(mbs_test_${name} ${CMAKE_CURRENT_LIST_DIR}/test_${name}.cc)
+  target_link_libraries(mbs_test_${name} PRIVATE mbdae_mbs GTest::gtest_main)
+  gtest_discover_tests(mbs_test_${name})
+endforeach()
+# The loader test reads verification/malformed/ and tests/mbs/models/ of the source tree.
+target_compile_definitions(mbs_test_loader PRIVATE MBDAE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
