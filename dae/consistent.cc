@@ -102,9 +102,28 @@ class TransposedQr {
       throw std::runtime_error("consistent: SuiteSparseQR failed (status " +
                                std::to_string(cc->status) + ")");
     }
-    perm_.resize(nc_);
-    for (int k = 0; k < nc_; ++k) perm_[k] = E ? static_cast<int>(E[k]) : k;
+    // R is "squeezed" (rows = the r independent columns in elimination order): column j
+    // of R is independent when its last entry lies on the next pivot row, dependent
+    // when all its entries lie above it.
+    const auto* Rp = static_cast<const Long*>(R_->p);
+    const auto* Ri = static_cast<const Long*>(R_->i);
+    Long pivot = 0;
+    for (int j = 0; j < nc_; ++j) {
+      const int equation = E ? static_cast<int>(E[j]) : j;
+      const bool live = Rp[j + 1] > Rp[j] && Ri[Rp[j + 1] - 1] == pivot && pivot < rank_;
+      if (live) {
+        live_.push_back({j, equation});
+        ++pivot;
+      } else {
+        dependent_.push_back(equation);
+      }
+    }
     if (E) cholmod_l_free(nc_, sizeof(Long), E, cc);
+    std::sort(dependent_.begin(), dependent_.end());
+    if (pivot != rank_) {
+      Free();
+      throw std::runtime_error("consistent: unexpected structure of the SuiteSparseQR factor");
+    }
   }
   ~TransposedQr() { Free(); }
   TransposedQr(const TransposedQr&) = delete;
@@ -113,31 +132,29 @@ class TransposedQr {
   int rank() const { return static_cast<int>(rank_); }
 
   // The equations set aside as dependent, sorted.
-  std::vector<int> Dependent() const {
-    std::vector<int> d(perm_.begin() + rank_, perm_.end());
-    std::sort(d.begin(), d.end());
-    return d;
-  }
+  const std::vector<int>& Dependent() const { return dependent_; }
 
   // x (nq) = the minimum-norm solution of the independent equations of C_q x = b (nc).
   void MinNormSolve(const double* b, double* x) {
     cholmod_common* cc = common_.get();
     const int r = rank();
-    // Forward substitution R11^T z = (E^T b)(1:r); column j of R holds R(0..j, j).
+    // Forward substitution R11^T z = b(independent): the k-th independent column j of
+    // R holds R(0..k, j), its diagonal on row k.
     std::vector<double> z(r, 0.0);
     const auto* Rp = static_cast<const Long*>(R_->p);
     const auto* Ri = static_cast<const Long*>(R_->i);
     const auto* Rx = static_cast<const double*>(R_->x);
-    for (int j = 0; j < r; ++j) {
-      double s = b[perm_[j]];
+    for (int k = 0; k < r; ++k) {
+      const auto [j, equation] = live_[k];
+      double s = b[equation];
       double diag = 0;
-      for (Long k = Rp[j]; k < Rp[j + 1]; ++k) {
-        const Long i = Ri[k];
-        if (i < j) s -= Rx[k] * z[i];
-        else if (i == j) diag = Rx[k];
+      for (Long e = Rp[j]; e < Rp[j + 1]; ++e) {
+        const Long i = Ri[e];
+        if (i < k) s -= Rx[e] * z[i];
+        else if (i == k) diag = Rx[e];
       }
       assert(diag != 0);
-      z[j] = s / diag;
+      z[k] = s / diag;
     }
     cholmod_dense* Z = cholmod_l_zeros(nq_, 1, CHOLMOD_REAL, cc);
     if (!Z) throw std::runtime_error("consistent: cholmod_l_zeros failed");
@@ -166,7 +183,8 @@ class TransposedQr {
   cholmod_sparse* H_ = nullptr;
   Long* HPinv_ = nullptr;
   cholmod_dense* HTau_ = nullptr;
-  std::vector<int> perm_;  // perm_[k]: the equation eliminated k-th
+  std::vector<std::pair<int, int>> live_;  // (column of R, equation) of the k-th pivot
+  std::vector<int> dependent_;
 };
 
 double MaxAbs(const std::vector<double>& x) {
