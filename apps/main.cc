@@ -1,2 +1,189 @@
+// mbdae: the command-line program (see the command-line contract).
+//
+//   mbdae simulate MODEL.yaml [options]   integrate and write the HDF5 results file
+//   mbdae info MODEL.yaml [--json]        counts and names
+//   mbdae check MODEL.yaml                load, assemble, check determinacy
+//
+// Output: progress on stderr, the summary and `info`/`check` reports on stdout, errors
+// on stderr prefixed "mbdae: error: ". Exit codes: 0 done, 2 bad input (nothing
+// written), 3 solver failed (file kept, status failed), 1 anything else.
+#include <unistd.h>
+
+#include <cmath>
 #include <cstdio>
-int main() { std::fprintf(stderr, "mbdae: not built yet\n"); return 1; }
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "apps/cli.h"
+#include "driver/simulation.h"
+#include "mbs/loader.h"
+
+namespace mbdae::app {
+namespace {
+
+const char* kUsage =
+    "usage:\n"
+    "  mbdae simulate MODEL.yaml [-o RESULTS.h5] [--integrator hht|ida] [--t-end T]\n"
+    "                 [--output-step H] [--step H] [--alpha A] [--adaptive] [--tolerance TOL]\n"
+    "                 [--modified | --no-modified] [--rtol R] [--atol A]\n"
+    "                 [--set NAME=VALUE ...] [--quiet]\n"
+    "  mbdae info MODEL.yaml [--json]\n"
+    "  mbdae check MODEL.yaml\n"
+    "  mbdae --help | --version\n";
+
+const char* kHelp =
+    "\n"
+    "simulate: integrates the model from t = 0 to t_end and writes one row per output\n"
+    "time to RESULTS.h5 (default: the model's path with .h5 instead of .yaml/.yml/.json).\n"
+    "Command-line values override the model's `simulation:` block:\n"
+    "  -o, --output FILE     results file\n"
+    "  --integrator hht|ida  integrator\n"
+    "  --t-end T             end time\n"
+    "  --output-step H       time between output rows\n"
+    "  --step H              HHT step (initial step when adaptive)\n"
+    "  --alpha A             HHT alpha, in [-1/3, 0]\n"
+    "  --adaptive            HHT with step size control (--fixed-step: without)\n"
+    "  --tolerance TOL       HHT local error tolerance when adaptive\n"
+    "  --modified            HHT scheme modified for Euler parameters (default)\n"
+    "  --no-modified         classical HHT\n"
+    "  --rtol R, --atol A    IDA tolerances\n"
+    "  --set NAME=VALUE ...  override a parameter of the model (repeatable)\n"
+    "  --quiet               no progress, no summary\n"
+    "Progress goes to stderr (a bar on a terminal, a line every 10 % otherwise); the\n"
+    "summary goes to stdout.\n"
+    "\n"
+    "info: counts (bodies, coordinates, constraint equations, redundant ones, degrees of\n"
+    "freedom, joints, measures, forces, parameters) and names; --json prints JSON.\n"
+    "check: loads and assembles the model and checks that its motion is determined.\n"
+    "\n"
+    "exit codes: 0 done; 2 bad input (nothing written); 3 the solver failed (the rows up\n"
+    "to the failure are kept, status 'failed'); 1 anything else.\n";
+
+void PrintError(const std::string& message) {
+  std::fprintf(stderr, "mbdae: error: %s\n", message.c_str());
+}
+
+void RequireReadable(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw UsageError(path + ": cannot open the model file");
+}
+
+mbs::Model Load(const CommandLine& cl) {
+  RequireReadable(cl.model_path);
+  mbs::LoadOptions lo;
+  lo.parameter_overrides = cl.parameter_overrides;
+  return mbs::LoadModel(cl.model_path, lo);
+}
+
+// Prefixes messages that do not name the model file yet.
+std::string NameFile(const std::string& path, const std::string& message) {
+  if (message.find(path) != std::string::npos) return message;
+  return path + ": " + message;
+}
+
+int RunInfo(const CommandLine& cl) {
+  mbs::Model model = Load(cl);
+  driver::AssemblyOptions ao;
+  ao.check_determinacy = false;  // info describes; `check` judges
+  driver::Assembly asmb = driver::Assemble(model, ao);
+  ModelInfo info = Describe(model, asmb);
+  std::cout << (cl.json ? info.Json() : info.Text());
+  return 0;
+}
+
+int RunCheck(const CommandLine& cl) {
+  mbs::Model model = Load(cl);
+  driver::ResolveSettings(model.simulation, cl.overrides);
+  driver::Assembly asmb = driver::Assemble(model);
+  ModelInfo info = Describe(model, asmb);
+  std::cout << cl.model_path << ": ok: " << info.bodies.size() << " bodies, "
+            << info.degrees_of_freedom << " degrees of freedom, " << info.redundant.size()
+            << " redundant constraint equations\n"
+            << asmb.Report() << "\n";
+  return 0;
+}
+
+int RunSimulate(const CommandLine& cl) {
+  mbs::Model model = Load(cl);
+  mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
+  driver::Assembly asmb = driver::Assemble(model);
+  if (!cl.quiet) {
+    std::fprintf(stderr, "mbdae: %s\n", asmb.Report().c_str());
+    if (!asmb.redundant.empty()) {
+      std::string names;
+      for (const auto& n : asmb.redundant_names()) names += (names.empty() ? "" : ", ") + n;
+      std::fprintf(stderr, "mbdae: %zu redundant constraint equations removed: %s\n",
+                   asmb.redundant.size(), names.c_str());
+    }
+  }
+  driver::SimulationOptions so;
+  so.model_path = cl.model_path;
+  so.results_path = cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path;
+  ProgressReporter progress(cl.quiet ? ProgressReporter::Mode::kNone
+                            : isatty(STDERR_FILENO) ? ProgressReporter::Mode::kBar
+                                                    : ProgressReporter::Mode::kLines);
+  so.progress = [&progress](double t, double t_end) { progress.Update(t, t_end); };
+  driver::SimulationSummary summary = driver::Simulate(model, asmb, settings, so);
+  progress.Finish();
+  if (!cl.quiet) std::cout << summary.FullReport() << std::flush;
+  if (summary.status != driver::SimulationSummary::Status::kDone) {
+    PrintError("the solver failed at t = " + std::to_string(summary.t_reached) + ": " +
+               summary.failure_reason + "; the results up to there are in " + so.results_path);
+    return 3;
+  }
+  return 0;
+}
+
+int Run(int argc, char** argv) {
+  CommandLine cl = ParseCommandLine(std::vector<std::string>(argv + 1, argv + argc));
+  if (cl.help) {
+    std::cout << kUsage << kHelp;
+    return 0;
+  }
+  if (cl.version) {
+    std::cout << "mbdae " << MBDAE_VERSION << "\n";
+    return 0;
+  }
+  try {
+    switch (cl.command) {
+      case Command::kSimulate: return RunSimulate(cl);
+      case Command::kInfo: return RunInfo(cl);
+      case Command::kCheck: return RunCheck(cl);
+    }
+  } catch (const driver::InputError& e) {
+    throw driver::InputError(NameFile(cl.model_path, e.what()));
+  }
+  return 1;
+}
+
+}  // namespace
+}  // namespace mbdae::app
+
+int main(int argc, char** argv) {
+  using namespace mbdae;
+  try {
+    return app::Run(argc, argv);
+  } catch (const app::UsageError& e) {
+    app::PrintError(e.what());
+    if (e.show_usage()) std::fputs(app::kUsage, stderr);
+    return 2;
+  } catch (const mbs::ModelError& e) {
+    app::PrintError(e.what());
+    return 2;
+  } catch (const driver::InputError& e) {
+    app::PrintError(e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    app::PrintError(e.what());
+    return 1;
+  } catch (...) {
+    app::PrintError("unknown exception");
+    return 1;
+  }
+}

@@ -1,0 +1,331 @@
+#include "apps/cli.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <optional>
+#include <sstream>
+
+namespace mbdae::app {
+namespace {
+
+bool IsIdentifier(const std::string& s) {
+  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  return std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.';
+  });
+}
+
+// NAME=VALUE with NAME an identifier and VALUE a number.
+bool LooksLikeAssignment(const std::string& s) {
+  const auto eq = s.find('=');
+  if (eq == std::string::npos || !IsIdentifier(s.substr(0, eq))) return false;
+  const std::string value = s.substr(eq + 1);
+  char* end = nullptr;
+  std::strtod(value.c_str(), &end);
+  return !value.empty() && end == value.c_str() + value.size();
+}
+
+// Shortest of 15 or 17 significant digits that reads back exactly.
+std::string Num(double x) {
+  for (int digits : {15, 17}) {
+    std::ostringstream s;
+    s.precision(digits);
+    s << x;
+    if (digits == 17 || std::strtod(s.str().c_str(), nullptr) == x) return s.str();
+  }
+  return "0";
+}
+
+}  // namespace
+
+double ParseNumber(const std::string& option, const std::string& text) {
+  char* end = nullptr;
+  const double x = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(x))
+    throw UsageError(option + ": expected a number, got '" + text + "'");
+  return x;
+}
+
+CommandLine ParseCommandLine(const std::vector<std::string>& args) {
+  CommandLine cl;
+  size_t i = 0;
+  if (args.empty()) throw UsageError("no command given", true);
+  const std::string& first = args[0];
+  if (first == "--help" || first == "-h" || first == "help") {
+    cl.help = true;
+    return cl;
+  }
+  if (first == "--version") {
+    cl.version = true;
+    return cl;
+  }
+  if (first == "simulate")
+    cl.command = Command::kSimulate;
+  else if (first == "info")
+    cl.command = Command::kInfo;
+  else if (first == "check")
+    cl.command = Command::kCheck;
+  else
+    throw UsageError("unknown command '" + first + "'", true);
+  ++i;
+
+  const bool sim = cl.command == Command::kSimulate;
+  while (i < args.size()) {
+    std::string arg = args[i++];
+    std::optional<std::string> inline_value;
+    if (arg.rfind("--", 0) == 0) {
+      const auto eq = arg.find('=');
+      if (eq != std::string::npos) {
+        inline_value = arg.substr(eq + 1);
+        arg = arg.substr(0, eq);
+      }
+    }
+    auto value = [&]() -> std::string {
+      if (inline_value) return *inline_value;
+      if (i >= args.size()) throw UsageError(arg + ": missing value");
+      return args[i++];
+    };
+    auto number = [&]() { return ParseNumber(arg, value()); };
+    auto no_value = [&]() {
+      if (inline_value) throw UsageError(arg + ": takes no value");
+    };
+    auto only_simulate = [&]() {
+      if (!sim) throw UsageError("option " + arg + " is only for `simulate`", true);
+    };
+
+    if (arg == "--help" || arg == "-h") {
+      no_value();
+      cl.help = true;
+    } else if (arg == "--version") {
+      no_value();
+      cl.version = true;
+    } else if (arg == "--json" && cl.command == Command::kInfo) {
+      no_value();
+      cl.json = true;
+    } else if (arg == "--set") {
+      const std::string a = value();
+      if (!LooksLikeAssignment(a)) throw UsageError("--set: expected NAME=VALUE, got '" + a + "'");
+      std::vector<std::string> assignments{a};
+      while (!inline_value && i < args.size() && LooksLikeAssignment(args[i]))
+        assignments.push_back(args[i++]);
+      for (const auto& s : assignments) {
+        const auto eq = s.find('=');
+        cl.parameter_overrides[s.substr(0, eq)] = ParseNumber("--set " + s, s.substr(eq + 1));
+      }
+    } else if (arg == "-o" || arg == "--output") {
+      only_simulate();
+      cl.output_path = value();
+      if (cl.output_path.empty()) throw UsageError(arg + ": empty file name");
+    } else if (arg == "--integrator") {
+      only_simulate();
+      const std::string v = value();
+      if (v == "hht")
+        cl.overrides.integrator = mbs::IntegratorKind::kHht;
+      else if (v == "ida")
+        cl.overrides.integrator = mbs::IntegratorKind::kIda;
+      else
+        throw UsageError("--integrator: expected hht or ida, got '" + v + "'");
+    } else if (arg == "--t-end") {
+      only_simulate();
+      cl.overrides.t_end = number();
+    } else if (arg == "--output-step") {
+      only_simulate();
+      cl.overrides.output_step = number();
+    } else if (arg == "--step") {
+      only_simulate();
+      cl.overrides.hht_step = number();
+    } else if (arg == "--alpha") {
+      only_simulate();
+      cl.overrides.hht_alpha = number();
+    } else if (arg == "--tolerance") {
+      only_simulate();
+      cl.overrides.hht_tolerance = number();
+    } else if (arg == "--adaptive") {
+      only_simulate();
+      no_value();
+      cl.overrides.hht_adaptive = true;
+    } else if (arg == "--fixed-step") {
+      only_simulate();
+      no_value();
+      cl.overrides.hht_adaptive = false;
+    } else if (arg == "--modified") {
+      only_simulate();
+      no_value();
+      cl.overrides.hht_modified = true;
+    } else if (arg == "--no-modified") {
+      only_simulate();
+      no_value();
+      cl.overrides.hht_modified = false;
+    } else if (arg == "--rtol") {
+      only_simulate();
+      cl.overrides.ida_rtol = number();
+    } else if (arg == "--atol") {
+      only_simulate();
+      cl.overrides.ida_atol = number();
+    } else if (arg == "--quiet" || arg == "-q") {
+      no_value();
+      cl.quiet = true;
+    } else if (arg.size() > 1 && arg[0] == '-') {
+      throw UsageError("unknown option '" + arg + "'", true);
+    } else if (cl.model_path.empty()) {
+      cl.model_path = arg;
+    } else {
+      throw UsageError("unexpected argument '" + arg + "' (the model is '" + cl.model_path + "')",
+                       true);
+    }
+  }
+  if (!cl.help && !cl.version && cl.model_path.empty())
+    throw UsageError("no model file given", true);
+  return cl;
+}
+
+std::string DefaultResultsPath(const std::string& model_path) {
+  const auto slash = model_path.find_last_of('/');
+  const auto dot = model_path.find_last_of('.');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
+    std::string ext = model_path.substr(dot);
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (ext == ".yaml" || ext == ".yml" || ext == ".json") return model_path.substr(0, dot) + ".h5";
+  }
+  return model_path + ".h5";
+}
+
+void ProgressReporter::Update(double t, double t_end) {
+  if (mode_ == Mode::kNone || !(t_end > 0)) return;
+  const double fraction = std::clamp(t / t_end, 0.0, 1.0);
+  if (mode_ == Mode::kLines) {
+    // One line per tenth of the run passed (several tenths at once print one line).
+    if (fraction + 1e-12 >= next_tenth_ / 10.0) {
+      while (next_tenth_ <= 10 && fraction + 1e-12 >= next_tenth_ / 10.0) ++next_tenth_;
+      std::fprintf(out_, "mbdae: t = %-10.6g of %g (%3.0f %%)\n", t, t_end, 100 * fraction);
+      std::fflush(out_);
+    }
+    return;
+  }
+  const auto now = std::chrono::steady_clock::now();
+  if (drawn_ && fraction < 1.0 && now - last_draw_ < std::chrono::milliseconds(100)) return;
+  last_draw_ = now;
+  drawn_ = true;
+  constexpr int kWidth = 30;
+  const int filled = static_cast<int>(fraction * kWidth);
+  std::string bar(kWidth, ' ');
+  for (int k = 0; k < filled; ++k) bar[k] = '=';
+  if (filled < kWidth) bar[filled] = '>';
+  std::fprintf(out_, "\r[%s] %3.0f %%  t = %-10.6g of %g ", bar.c_str(), 100 * fraction, t, t_end);
+  std::fflush(out_);
+}
+
+void ProgressReporter::Finish() {
+  if (mode_ == Mode::kBar && drawn_) {
+    std::fputc('\n', out_);
+    std::fflush(out_);
+  }
+  drawn_ = false;
+}
+
+ModelInfo Describe(const mbs::Model& model, const driver::Assembly& assembly) {
+  ModelInfo info;
+  info.file = model.file;
+  info.name = model.name;
+  for (const auto& b : model.bodies) info.bodies.push_back(b.name);
+  for (const auto& j : model.joints) info.joints.push_back(j.name);
+  for (const auto& m : model.measures) info.measures.push_back(m.name);
+  for (const auto& f : model.forces) info.forces.push_back(f.name);
+  for (const auto& p : model.parameters) {
+    info.parameters.push_back(p.name);
+    info.parameter_values.push_back(p.value);
+  }
+  info.coordinates = assembly.system->coordinate_names();
+  info.constraints = assembly.system->constraint_names();
+  info.redundant = assembly.redundant_names();
+  info.degrees_of_freedom = static_cast<int>(info.coordinates.size()) -
+                            (static_cast<int>(info.constraints.size()) -
+                             static_cast<int>(info.redundant.size()));
+  return info;
+}
+
+std::string JsonString(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += static_cast<char>(c);
+        }
+    }
+  }
+  return out + "\"";
+}
+
+namespace {
+std::string JsonList(const std::vector<std::string>& names) {
+  std::string out = "[";
+  for (size_t i = 0; i < names.size(); ++i) out += (i ? ", " : "") + JsonString(names[i]);
+  return out + "]";
+}
+std::string TextList(const std::vector<std::string>& names) {
+  std::string out;
+  for (size_t i = 0; i < names.size(); ++i) out += (i ? ", " : "") + names[i];
+  return out;
+}
+}  // namespace
+
+std::string ModelInfo::Text() const {
+  std::ostringstream s;
+  s << "model:                 " << (name.empty() ? "(unnamed)" : name) << " (" << file << ")\n";
+  auto line = [&s](const char* label, size_t n, const std::vector<std::string>* names) {
+    s << label << n;
+    if (names && !names->empty()) s << ": " << TextList(*names);
+    s << "\n";
+  };
+  line("bodies:                ", bodies.size(), &bodies);
+  line("coordinates:           ", coordinates.size(), nullptr);
+  line("constraint equations:  ", constraints.size(), nullptr);
+  line("redundant equations:   ", redundant.size(), &redundant);
+  s << "degrees of freedom:    " << degrees_of_freedom << "\n";
+  line("joints:                ", joints.size(), &joints);
+  line("measures:              ", measures.size(), &measures);
+  line("forces:                ", forces.size(), &forces);
+  s << "parameters:            " << parameters.size();
+  for (size_t i = 0; i < parameters.size(); ++i)
+    s << (i ? ", " : ": ") << parameters[i] << " = " << parameter_values[i];
+  s << "\n";
+  return s.str();
+}
+
+std::string ModelInfo::Json() const {
+  std::ostringstream s;
+  s << "{\n  \"file\": " << JsonString(file) << ",\n  \"name\": " << JsonString(name) << ",\n";
+  s << "  \"counts\": {\"bodies\": " << bodies.size() << ", \"coordinates\": " << coordinates.size()
+    << ", \"constraint_equations\": " << constraints.size()
+    << ", \"redundant_equations\": " << redundant.size()
+    << ", \"degrees_of_freedom\": " << degrees_of_freedom << ", \"joints\": " << joints.size()
+    << ", \"measures\": " << measures.size() << ", \"forces\": " << forces.size()
+    << ", \"parameters\": " << parameters.size() << "},\n";
+  s << "  \"bodies\": " << JsonList(bodies) << ",\n";
+  s << "  \"coordinates\": " << JsonList(coordinates) << ",\n";
+  s << "  \"constraint_equations\": " << JsonList(constraints) << ",\n";
+  s << "  \"redundant_equations\": " << JsonList(redundant) << ",\n";
+  s << "  \"joints\": " << JsonList(joints) << ",\n";
+  s << "  \"measures\": " << JsonList(measures) << ",\n";
+  s << "  \"forces\": " << JsonList(forces) << ",\n";
+  s << "  \"parameters\": {";
+  for (size_t i = 0; i < parameters.size(); ++i)
+    s << (i ? ", " : "") << JsonString(parameters[i]) << ": " << Num(parameter_values[i]);
+  s << "}\n}\n";
+  return s.str();
+}
+
+}  // namespace mbdae::app

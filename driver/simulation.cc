@@ -1,0 +1,542 @@
+#include "driver/simulation.h"
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCore>
+#include <Eigen/SparseQR>
+
+#include <algorithm>
+#include <cassert>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include "dae/hht.h"
+#include "dae/ida.h"
+#include "io/results_file.h"
+
+namespace mbdae::driver {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string Num(double x) {
+  std::ostringstream s;
+  s.precision(6);
+  s << x;
+  return s.str();
+}
+
+std::string Join(const std::vector<std::string>& names, const char* sep = ", ") {
+  std::string out;
+  for (size_t i = 0; i < names.size(); ++i) out += (i ? sep : "") + names[i];
+  return out;
+}
+
+dae::HhtOptions HhtFrom(const mbs::SimulationSettings& s) {
+  dae::HhtOptions o;
+  o.alpha = s.hht_alpha;
+  o.step = s.hht_step;
+  o.adaptive = s.hht_adaptive;
+  o.tolerance = s.hht_tolerance;
+  o.modified = s.hht_modified;
+  return o;
+}
+
+dae::IdaOptions IdaFrom(const mbs::SimulationSettings& s) {
+  dae::IdaOptions o;
+  o.rtol = s.ida_rtol;
+  o.atol = s.ida_atol;
+  return o;
+}
+
+// Names of the joints (or normalisations) owning the listed constraint equations.
+std::vector<std::string> OwnersOf(const mbs::MultibodySystem& system, const std::vector<int>& eqs) {
+  std::vector<std::string> owners;
+  std::set<std::string> seen;
+  const auto& joint = system.constraint_joint();
+  const auto& names = system.constraint_names();
+  for (int e : eqs) {
+    if (e < 0 || e >= static_cast<int>(joint.size())) continue;
+    std::string owner = joint[e] >= 0 ? system.model().joints[joint[e]].name : names[e];
+    if (seen.insert(owner).second) owners.push_back(owner);
+  }
+  return owners;
+}
+
+std::string Prefix(const mbs::Model& model) { return model.file.empty() ? "" : model.file + ": "; }
+
+}  // namespace
+
+const char* IntegratorName(mbs::IntegratorKind kind) {
+  return kind == mbs::IntegratorKind::kIda ? "ida" : "hht";
+}
+
+mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
+                                        const SettingsOverrides& o) {
+  mbs::SimulationSettings s = model_settings;
+  if (o.t_end) s.t_end = *o.t_end;
+  if (o.output_step) s.output_step = *o.output_step;
+  if (o.integrator) s.integrator = *o.integrator;
+  if (o.hht_alpha) s.hht_alpha = *o.hht_alpha;
+  if (o.hht_step) s.hht_step = *o.hht_step;
+  if (o.hht_tolerance) s.hht_tolerance = *o.hht_tolerance;
+  if (o.hht_adaptive) s.hht_adaptive = *o.hht_adaptive;
+  if (o.hht_modified) s.hht_modified = *o.hht_modified;
+  if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
+  if (o.ida_atol) s.ida_atol = *o.ida_atol;
+  if (!(s.t_end > 0) || !std::isfinite(s.t_end))
+    throw InputError("simulation setting t_end must be > 0, got " + Num(s.t_end));
+  if (!(s.output_step > 0) || !std::isfinite(s.output_step))
+    throw InputError("simulation setting output_step must be > 0, got " + Num(s.output_step));
+  if (s.t_end / s.output_step > 1e8)
+    throw InputError("simulation settings t_end / output_step give more than 1e8 output rows");
+  std::string error;
+  if (s.integrator == mbs::IntegratorKind::kHht) {
+    if (!HhtFrom(s).IsValid(&error)) throw InputError("hht settings: " + error);
+  } else {
+    if (!IdaFrom(s).IsValid(&error)) throw InputError("ida settings: " + error);
+  }
+  return s;
+}
+
+bool AssemblyOptions::IsValid(std::string* error) const {
+  auto fail = [error](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!consistency.IsValid(error)) return false;
+  if (!(moved_threshold >= 0)) return fail("moved_threshold must be >= 0");
+  if (!(singularity_tolerance > 0 && singularity_tolerance < 1))
+    return fail("singularity_tolerance must be in (0, 1)");
+  return true;
+}
+
+std::vector<std::string> Assembly::redundant_names() const {
+  std::vector<std::string> out;
+  for (int e : redundant) out.push_back(system->constraint_names()[e]);
+  return out;
+}
+
+std::vector<std::string> Assembly::kept_names() const {
+  std::vector<std::string> out;
+  for (int e : kept) out.push_back(system->constraint_names()[e]);
+  return out;
+}
+
+std::string Assembly::Report() const {
+  std::ostringstream s;
+  s << "assembly: positions moved by at most " << Num(max_position_change)
+    << ", velocities by at most " << Num(max_velocity_change);
+  if (moved_bodies.empty())
+    s << "; no body moved";
+  else
+    s << "; moved: " << Join(moved_bodies);
+  return s.str();
+}
+
+std::vector<std::string> UndeterminedBodies(const mbs::Model& model, dae::MechanicalSystem& system,
+                                            const dae::State& x, double tolerance,
+                                            bool* singular) {
+  const int nq = system.num_coordinates();
+  const int nc = system.num_constraints();
+  const int n = nq + nc;
+  const dae::CscPattern& pm = system.pattern(dae::Matrix::kMass);
+  const dae::CscPattern& pc = system.pattern(dae::Matrix::kConstraintDq);
+  std::vector<double> mass(pm.nnz()), cq(pc.nnz());
+  dae::EvalInput in;
+  in.t = x.t;
+  in.q = x.q.data();
+  in.v = x.v.data();
+  in.a = x.a.data();
+  dae::EvalOutput out;
+  out[dae::Matrix::kMass] = mass.data();
+  out[dae::Matrix::kConstraintDq] = cq.data();
+  if (system.Evaluate(in, out) != 0)
+    throw InputError(std::string("cannot evaluate the model at the assembled state: ") +
+                     system.last_error());
+
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int c = 0; c < pm.cols; ++c)
+    for (int k = pm.col_start[c]; k < pm.col_start[c + 1]; ++k)
+      entries.emplace_back(pm.row_index[k], c, mass[k]);
+  for (int c = 0; c < pc.cols; ++c)
+    for (int k = pc.col_start[c]; k < pc.col_start[c + 1]; ++k) {
+      entries.emplace_back(nq + pc.row_index[k], c, cq[k]);
+      entries.emplace_back(c, nq + pc.row_index[k], cq[k]);
+    }
+  Eigen::SparseMatrix<double> K(n, n);
+  K.setFromTriplets(entries.begin(), entries.end());
+  // Symmetric equilibration (Ruiz): rows and columns scaled by 1/sqrt(max |K_ij|), so
+  // that the rank decision does not depend on units.
+  Eigen::VectorXd d = Eigen::VectorXd::Ones(n);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::VectorXd rmax = Eigen::VectorXd::Zero(n);
+    for (int c = 0; c < K.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator i(K, c); i; ++i)
+        rmax[i.row()] = std::max(rmax[i.row()], std::abs(i.value()));
+    Eigen::VectorXd s(n);
+    for (int i = 0; i < n; ++i) s[i] = rmax[i] > 0 ? 1.0 / std::sqrt(rmax[i]) : 1.0;
+    for (int c = 0; c < K.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator i(K, c); i; ++i)
+        i.valueRef() *= s[i.row()] * s[c];
+    d = d.cwiseProduct(s);
+  }
+
+  std::set<int> bodies;
+  *singular = false;
+  if (n <= 1500) {
+    Eigen::MatrixXd dense = K.toDense();
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(dense);
+    lu.setThreshold(tolerance);
+    if (lu.rank() == n) return {};
+    *singular = true;
+    Eigen::MatrixXd kernel = lu.kernel();
+    for (int c = 0; c < kernel.cols(); ++c) {
+      // Back to unscaled coordinates, then look at the coordinate part.
+      Eigen::VectorXd z = d.cwiseProduct(kernel.col(c));
+      const double zmax = z.head(nq).cwiseAbs().maxCoeff();
+      if (zmax == 0) continue;
+      for (int i = 0; i < nq; ++i)
+        if (std::abs(z[i]) > 1e-6 * zmax) bodies.insert(i / 7);
+    }
+  } else {
+    Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr;
+    K.makeCompressed();
+    qr.setPivotThreshold(tolerance);
+    qr.compute(K);
+    if (qr.info() == Eigen::Success && qr.rank() == n) return {};
+    *singular = true;
+    for (size_t b = 0; b < model.bodies.size(); ++b) {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(model.bodies[b].inertia);
+      if (model.bodies[b].mass <= 0 || eig.eigenvalues().minCoeff() <= 0) bodies.insert(b);
+    }
+  }
+  std::vector<std::string> names;
+  for (int b : bodies)
+    if (b < static_cast<int>(model.bodies.size())) names.push_back(model.bodies[b].name);
+  return names;
+}
+
+namespace {
+
+[[noreturn]] void ThrowUndetermined(const mbs::Model& model, const std::vector<std::string>& bodies) {
+  throw InputError(Prefix(model) +
+                   "the motion of bodies with zero mass or inertia is not determined by their "
+                   "joints: " +
+                   (bodies.empty() ? std::string("(could not tell which)") : Join(bodies)));
+}
+
+}  // namespace
+
+Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw InputError("assembly options: " + error);
+  Assembly r;
+  r.system = std::make_unique<mbs::MultibodySystem>(model);
+  mbs::MultibodySystem& sys = *r.system;
+  const int nq = sys.num_coordinates();
+  const int nc = sys.num_constraints();
+  dae::State x;
+  x.Resize(nq, nc);
+  x.t = 0;
+  sys.InitialState(x.q, x.v);
+  const std::vector<double> q0 = x.q, v0 = x.v;
+
+  r.report = dae::MakeConsistent(sys, x, options.consistency);
+  if (!r.report.ok) {
+    if (r.report.violated.empty() && options.check_determinacy) {
+      // Positions could be satisfied: the failure may be an undetermined acceleration.
+      bool singular = false;
+      auto bodies = UndeterminedBodies(model, sys, x, options.singularity_tolerance, &singular);
+      if (singular) ThrowUndetermined(model, bodies);
+    }
+    std::string msg = Prefix(model) + "the model cannot be assembled";
+    auto joints = OwnersOf(sys, r.report.violated);
+    if (!joints.empty()) msg += ": the equations of " + Join(joints) + " cannot be satisfied";
+    if (!r.report.message.empty()) msg += " (" + r.report.message + ")";
+    throw InputError(msg);
+  }
+  r.redundant = r.report.redundant;
+  std::sort(r.redundant.begin(), r.redundant.end());
+  for (int e = 0, k = 0; e < nc; ++e) {
+    if (k < static_cast<int>(r.redundant.size()) && r.redundant[k] == e)
+      ++k;
+    else
+      r.kept.push_back(e);
+  }
+  r.kept_system = dae::KeepConstraints(sys, r.kept);
+
+  r.x0.t = x.t;
+  r.x0.q = x.q;
+  r.x0.v = x.v;
+  r.x0.a.assign(nq, 0.0);
+  r.x0.lambda.assign(r.kept.size(), 0.0);
+  if (options.check_determinacy) {
+    bool singular = false;
+    auto bodies =
+        UndeterminedBodies(model, *r.kept_system, r.x0, options.singularity_tolerance, &singular);
+    if (singular) ThrowUndetermined(model, bodies);
+  }
+  dae::ConsistencyReport second = dae::MakeConsistent(*r.kept_system, r.x0, options.consistency);
+  if (!second.ok)
+    throw InputError(Prefix(model) + "the model cannot be assembled: " + second.message);
+
+  // What moved, per body.
+  for (size_t b = 0; b < model.bodies.size(); ++b) {
+    double dq = 0, dv = 0;
+    for (int i = 7 * static_cast<int>(b); i < 7 * static_cast<int>(b) + 7 && i < nq; ++i) {
+      dq = std::max(dq, std::abs(r.x0.q[i] - q0[i]));
+      dv = std::max(dv, std::abs(r.x0.v[i] - v0[i]));
+    }
+    r.max_position_change = std::max(r.max_position_change, dq);
+    r.max_velocity_change = std::max(r.max_velocity_change, dv);
+    if (dq > options.moved_threshold || dv > options.moved_threshold)
+      r.moved_bodies.push_back(model.bodies[b].name);
+  }
+  return r;
+}
+
+std::vector<double> OutputTimes(double t_end, double output_step) {
+  std::vector<double> times{0.0};
+  for (long k = 1;; ++k) {
+    const double t = k * output_step;
+    if (t >= t_end - 1e-9 * output_step) break;
+    times.push_back(t);
+  }
+  times.push_back(t_end);
+  return times;
+}
+
+double UnwrapAngle(double value, double previous) {
+  return value + 2 * kPi * std::round((previous - value) / (2 * kPi));
+}
+
+void AngularVelocityWorld(const double* e, const double* ed, double* w) {
+  // E(e) = [-e1  e0 -e3  e2; -e2  e3  e0 -e1; -e3 -e2  e1  e0], omega = 2 E e'.
+  w[0] = 2 * (-e[1] * ed[0] + e[0] * ed[1] - e[3] * ed[2] + e[2] * ed[3]);
+  w[1] = 2 * (-e[2] * ed[0] + e[3] * ed[1] + e[0] * ed[2] - e[1] * ed[3]);
+  w[2] = 2 * (-e[3] * ed[0] - e[2] * ed[1] + e[1] * ed[2] + e[0] * ed[3]);
+}
+
+std::string SimulationSummary::FullReport() const {
+  std::ostringstream s;
+  s << "integrator:            " << integrator;
+  if (!integrator_detail.empty()) s << " (" << integrator_detail << ")";
+  s << "\nstatus:                "
+    << (status == Status::kDone ? "done" : "failed: " + failure_reason) << ", t = "
+    << Num(t_reached) << " of " << Num(t_end) << "\n";
+  s << "steps:                 " << counters.steps_accepted << " accepted, "
+    << counters.steps_rejected << " rejected\n";
+  s << "Newton iterations:     " << counters.newton_iterations << "\n";
+  s << "Jacobian evaluations:  " << counters.jacobian_evaluations << "\n";
+  s << "factorizations:        " << counters.factorizations << "\n";
+  s << "wall time:             " << Num(wall_time) << " s\n";
+  s << "max violation:         position " << Num(max_position_violation) << ", velocity "
+    << Num(max_velocity_violation) << "\n";
+  s << "redundant constraints: " << redundant_constraints.size();
+  if (!redundant_constraints.empty()) s << " (" << Join(redundant_constraints) << ")";
+  s << "\n";
+  if (!results_path.empty()) s << "results:               " << results_path << " (" << rows << " rows)\n";
+  return s.str();
+}
+
+SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
+                           const mbs::SimulationSettings& settings,
+                           const SimulationOptions& options) {
+  assert(asmb.system && asmb.kept_system);
+  const auto start = std::chrono::steady_clock::now();
+  mbs::MultibodySystem& sys = *asmb.system;
+  dae::MechanicalSystem& kept = *asmb.kept_system;
+  const int nq = sys.num_coordinates();
+  const int nc_full = sys.num_constraints();
+  const int nc = kept.num_constraints();
+  const int nb = static_cast<int>(model.bodies.size());
+  const int nm = static_cast<int>(model.measures.size());
+  const int nj = static_cast<int>(model.joints.size());
+  const int nf = static_cast<int>(model.forces.size());
+
+  SimulationSummary summary;
+  summary.integrator = IntegratorName(settings.integrator);
+  summary.t_end = settings.t_end;
+  summary.redundant_constraints = asmb.redundant_names();
+  summary.results_path = options.results_path;
+
+  std::unique_ptr<dae::Integrator> integrator;
+  if (settings.integrator == mbs::IntegratorKind::kHht)
+    integrator = dae::MakeHhtIntegrator(kept, HhtFrom(settings));
+  else
+    integrator = dae::MakeIdaIntegrator(kept, IdaFrom(settings));
+  summary.integrator_detail = integrator->name();
+  integrator->Initialize(asmb.x0);
+
+  io::ResultsLayout layout;
+  layout.q_names = sys.coordinate_names();
+  layout.lambda_names = asmb.kept_names();
+  for (const auto& b : model.bodies) layout.bodies.push_back(b.name);
+  for (const auto& m : model.measures) layout.measures.push_back(m.name);
+  for (const auto& j : model.joints) layout.joints.push_back(j.name);
+  for (const auto& f : model.forces) layout.forces.push_back(f.name);
+  io::ResultsFile file(options.results_path, layout);
+
+  file.SetAttribute("format", 1);
+  file.SetAttribute("model", options.model_path.empty() ? model.file : options.model_path);
+  file.SetAttribute("model_name", model.name);
+  file.SetAttribute("integrator", summary.integrator);
+  file.SetAttribute("integrator_detail", summary.integrator_detail);
+  file.SetAttribute("t_end", settings.t_end);
+  file.SetAttribute("output_step", settings.output_step);
+  if (settings.integrator == mbs::IntegratorKind::kHht) {
+    file.SetAttribute("hht_alpha", settings.hht_alpha);
+    file.SetAttribute("hht_step", settings.hht_step);
+    file.SetAttribute("hht_adaptive", settings.hht_adaptive ? 1 : 0);
+    file.SetAttribute("hht_tolerance", settings.hht_tolerance);
+    file.SetAttribute("hht_modified", settings.hht_modified ? 1 : 0);
+  } else {
+    file.SetAttribute("ida_rtol", settings.ida_rtol);
+    file.SetAttribute("ida_atol", settings.ida_atol);
+  }
+  file.SetAttribute("status", "running");
+  file.SetAttribute("t_reached", 0.0);
+  file.SetAttribute("redundant_constraints", static_cast<long>(summary.redundant_constraints.size()));
+  file.SetAttribute("redundant_constraint_names", summary.redundant_constraints);
+  file.SetAttribute("assembly_max_position_change", asmb.max_position_change);
+  file.SetAttribute("assembly_max_velocity_change", asmb.max_velocity_change);
+  file.SetAttribute("assembly_moved_bodies", asmb.moved_bodies);
+  for (const auto& p : model.parameters) file.SetAttribute("parameter." + p.name, p.value);
+
+  // Workspaces of one row.
+  std::vector<double> lambda_full(nc_full, 0.0), body(13 * nb), measures(nm), raw(nm),
+      previous(nm), initial(nm), joints(6 * nj), forces(6 * nf), c(nc), cdt(nc), cv(nc);
+  const dae::CscPattern& pcq = kept.pattern(dae::Matrix::kConstraintDq);
+  std::vector<double> cq(pcq.nnz());
+  bool first = true;
+
+  auto write_row = [&](const dae::State& x) {
+    const double t = x.t;
+    std::fill(lambda_full.begin(), lambda_full.end(), 0.0);
+    for (int k = 0; k < nc; ++k) lambda_full[asmb.kept[k]] = x.lambda[k];
+    for (int b = 0; b < nb; ++b) {
+      const double* q = x.q.data() + 7 * b;
+      const double* v = x.v.data() + 7 * b;
+      double* out = body.data() + 13 * b;
+      std::copy(q, q + 3, out);
+      std::copy(q + 3, q + 7, out + 3);
+      std::copy(v, v + 3, out + 7);
+      AngularVelocityWorld(q + 3, v + 3, out + 10);
+    }
+    if (nm > 0) sys.EvaluateMeasures(t, x.q.data(), x.v.data(), x.a.data(), raw.data());
+    for (int m = 0; m < nm; ++m) {
+      const auto& meas = model.measures[m];
+      double value = raw[m];
+      if (meas.type == mbs::MeasureType::kRotational && meas.quantity == mbs::Quantity::kPosition &&
+          !first)
+        value = UnwrapAngle(value, previous[m]);
+      previous[m] = value;
+      if (first) initial[m] = value;
+      measures[m] = meas.offset_initial ? value - initial[m] : value;
+    }
+    for (int j = 0; j < nj; ++j)
+      sys.JointReaction(j, t, x.q.data(), lambda_full.data(), joints.data() + 6 * j,
+                        joints.data() + 6 * j + 3);
+    for (int f = 0; f < nf; ++f)
+      sys.ForceAction(f, t, x.q.data(), x.v.data(), forces.data() + 6 * f,
+                      forces.data() + 6 * f + 3);
+    double pos_violation = 0, vel_violation = 0;
+    if (nc > 0) {
+      dae::EvalInput in;
+      in.t = t;
+      in.q = x.q.data();
+      in.v = x.v.data();
+      in.a = x.a.data();
+      dae::EvalOutput out;
+      out.constraint = c.data();
+      out.constraint_dt = cdt.data();
+      out[dae::Matrix::kConstraintDq] = cq.data();
+      if (kept.Evaluate(in, out) == 0) {
+        cv = cdt;
+        dae::MultiplyAdd(pcq, cq.data(), 1.0, x.v.data(), cv.data());
+        for (int k = 0; k < nc; ++k) {
+          pos_violation = std::max(pos_violation, std::abs(c[k]));
+          vel_violation = std::max(vel_violation, std::abs(cv[k]));
+        }
+      } else {
+        pos_violation = vel_violation = std::numeric_limits<double>::quiet_NaN();
+      }
+    }
+    if (!std::isnan(pos_violation))
+      summary.max_position_violation = std::max(summary.max_position_violation, pos_violation);
+    if (!std::isnan(vel_violation))
+      summary.max_velocity_violation = std::max(summary.max_velocity_violation, vel_violation);
+
+    io::ResultsRow row;
+    row.t = t;
+    row.q = x.q.data();
+    row.v = x.v.data();
+    row.a = x.a.data();
+    row.lambda = x.lambda.data();
+    row.body_data = body.data();
+    row.measures = measures.data();
+    row.joint_data = joints.data();
+    row.force_data = forces.data();
+    row.kinetic_energy = sys.KineticEnergy(x.q.data(), x.v.data());
+    row.potential_energy = sys.PotentialEnergy(t, x.q.data());
+    row.position_violation = pos_violation;
+    row.velocity_violation = vel_violation;
+    file.AppendRow(row);
+    first = false;
+    summary.t_reached = t;
+    if (options.progress) options.progress(t, settings.t_end);
+  };
+
+  const std::vector<double> times = OutputTimes(settings.t_end, settings.output_step);
+  bool ok = true;
+  try {
+    write_row(integrator->state());
+    for (size_t k = 1; k < times.size(); ++k) {
+      if (!integrator->AdvanceTo(times[k])) {
+        ok = false;
+        break;
+      }
+      dae::State x = integrator->state();
+      x.t = times[k];  // exactly the output time (guards against round-off in the integrator)
+      write_row(x);
+    }
+  } catch (const std::exception& e) {
+    // Keep what was written and say why it stopped; the caller decides what it means.
+    file.SetAttribute("status", "failed");
+    file.SetAttribute("t_reached", summary.t_reached);
+    file.SetAttribute("failure_reason", std::string(e.what()));
+    throw;
+  }
+
+  summary.counters = integrator->summary();
+  summary.rows = file.rows();
+  summary.status = ok ? SimulationSummary::Status::kDone : SimulationSummary::Status::kFailed;
+  if (!ok) {
+    summary.t_reached = integrator->summary().t_reached;
+    summary.failure_reason = integrator->summary().message.empty()
+                                 ? std::string("the integrator stopped without a reason")
+                                 : integrator->summary().message;
+  }
+  summary.wall_time =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  file.SetAttribute("status", ok ? "done" : "failed");
+  file.SetAttribute("t_reached", summary.t_reached);
+  if (!ok) file.SetAttribute("failure_reason", summary.failure_reason);
+  file.SetAttribute("steps_accepted", summary.counters.steps_accepted);
+  file.SetAttribute("steps_rejected", summary.counters.steps_rejected);
+  file.SetAttribute("newton_iterations", summary.counters.newton_iterations);
+  file.SetAttribute("jacobian_evaluations", summary.counters.jacobian_evaluations);
+  file.SetAttribute("factorizations", summary.counters.factorizations);
+  file.SetAttribute("residual_evaluations", summary.counters.residual_evaluations);
+  file.SetAttribute("wall_time", summary.wall_time);
+  file.SetAttribute("max_position_violation", summary.max_position_violation);
+  file.SetAttribute("max_velocity_violation", summary.max_velocity_violation);
+  file.Flush();
+  return summary;
+}
+
+}  // namespace mbdae::driver

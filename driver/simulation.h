@@ -1,0 +1,137 @@
+// The simulation pipeline behind the `mbdae` program (and any other front end):
+// settings, system, assembly, determinacy check, integration output step by output
+// step, and the results file.
+//
+//   Model model = mbs::LoadModel(path, {overrides});
+//   SimulationSettings s = ResolveSettings(model.simulation, cli_overrides);  // validated
+//   Assembly asmb = Assemble(model);               // consistent state, redundant equations
+//   SimulationSummary summary = Simulate(model, asmb, s, options);  // writes the file
+//
+// Errors: mistakes of the user (a model that cannot be assembled, bodies whose motion is
+// not determined, bad settings) are InputError; a solver failure during the run is not
+// an exception: the summary says kFailed, and the rows computed so far stay in the file.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dae/consistent.h"
+#include "dae/integrator.h"
+#include "mbs/model.h"
+#include "mbs/system.h"
+
+namespace mbdae::driver {
+
+// A mistake in the input (settings, a model that cannot be assembled or whose motion is
+// not determined). what() names the element and what is wrong.
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Command-line values that override the model's `simulation:` block; unset ones keep it.
+struct SettingsOverrides {
+  std::optional<double> t_end, output_step;
+  std::optional<mbs::IntegratorKind> integrator;
+  std::optional<double> hht_alpha, hht_step, hht_tolerance;
+  std::optional<bool> hht_adaptive, hht_modified;
+  std::optional<double> ida_rtol, ida_atol;
+};
+
+// The model's settings with the overrides applied, validated (t_end > 0, 0 < output_step,
+// and HhtOptions::IsValid / IdaOptions::IsValid of the chosen integrator). Throws
+// InputError naming the setting.
+mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
+                                        const SettingsOverrides& overrides);
+
+const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida"
+
+// The model assembled at t = 0.
+struct Assembly {
+  std::unique_ptr<mbs::MultibodySystem> system;  // all constraint equations
+  std::vector<int> kept;                         // independent equations (sorted)
+  std::vector<int> redundant;                    // dependent equations (sorted)
+  std::unique_ptr<dae::MechanicalSystem> kept_system;  // view of `system` with `kept`
+  dae::State x0;                                 // consistent, of kept_system (lambda: nc kept)
+  dae::ConsistencyReport report;                 // of the full system
+  std::vector<std::string> moved_bodies;         // bodies moved by more than 1e-9 (q or v)
+  double max_position_change = 0;
+  double max_velocity_change = 0;
+
+  std::vector<std::string> redundant_names() const;
+  std::vector<std::string> kept_names() const;
+  // "assembly: positions moved by at most ..., velocities by ...; moved: a, b"
+  std::string Report() const;
+};
+
+struct AssemblyOptions {
+  dae::ConsistencyOptions consistency;
+  double moved_threshold = 1e-9;  // a body is reported as moved above this change
+  // The acceleration-level matrix is declared singular when its rank (relative
+  // tolerance on the equilibrated matrix) is below its size.
+  double singularity_tolerance = 1e-10;
+  bool check_determinacy = true;
+  bool IsValid(std::string* error) const;
+};
+
+// Builds the system, projects the initial state, finds the redundant equations, keeps
+// the independent ones and solves for a and lambda. Throws InputError naming the joints
+// whose equations cannot be satisfied, or the bodies whose motion is not determined.
+Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options = {});
+
+// Determinacy: if [M C_q^T; C_q 0] of `system` at x is singular, returns the names of the
+// bodies whose coordinates appear in its null space (or, when the matrix is too large for
+// that analysis, the bodies with zero mass or a singular inertia); empty if regular.
+std::vector<std::string> UndeterminedBodies(const mbs::Model& model, dae::MechanicalSystem& system,
+                                            const dae::State& x, double tolerance,
+                                            bool* singular);
+
+struct SimulationOptions {
+  std::string model_path;    // written as the `model` attribute
+  std::string results_path;  // the file to create (after everything checked out)
+  // Called after every output row with (t, t_end).
+  std::function<void(double, double)> progress;
+};
+
+struct SimulationSummary {
+  enum class Status { kDone, kFailed };
+  Status status = Status::kFailed;
+  std::string integrator;           // "hht" | "ida"
+  std::string integrator_detail;    // Integrator::name()
+  std::string failure_reason;
+  double t_end = 0;
+  double t_reached = 0;
+  long rows = 0;
+  dae::Summary counters;            // of the integrator
+  double wall_time = 0;             // seconds, the integration and output
+  double max_position_violation = 0;  // max |C| of the kept system over the rows
+  double max_velocity_violation = 0;  // max |C_q v + C_t| over the rows
+  std::vector<std::string> redundant_constraints;
+  std::string results_path;
+
+  std::string FullReport() const;  // the multi-line summary the program prints
+};
+
+// Integrates from asmb.x0 to settings.t_end, writing one row per output time to a new
+// results file (created here; throws std::runtime_error if it cannot be). Integrator
+// failure: status kFailed with the reason, the file keeps its rows.
+SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
+                           const mbs::SimulationSettings& settings,
+                           const SimulationOptions& options);
+
+// Output times: 0, h, 2h, ..., t_end (the last one exactly t_end; a last interval
+// shorter than 1e-9 h is merged into it).
+std::vector<double> OutputTimes(double t_end, double output_step);
+
+// Unwraps an angle to be continuous with `previous` (adds multiples of 2 pi).
+double UnwrapAngle(double value, double previous);
+
+// Angular velocity in world axes from Euler parameters and their rates: 2 E(e) e'
+// (Nikravesh, Computer-Aided Analysis of Mechanical Systems, 1988, eq. 6.101).
+void AngularVelocityWorld(const double* e, const double* e_dot, double* omega);
+
+}  // namespace mbdae::driver
