@@ -1,1 +1,549 @@
+// HHT-alpha for the index-3 mechanical DAE (see dae/hht.h and docs/hht.md).
+//
+// Unknowns of each step: a_{n+1}, lambda_{n+1}. Residual (Negrut, Rampalli, Ottarsson,
+// Sajdak, J. Comput. Nonlinear Dynam. 2 (2007) 73-85):
+//   r_q = (M a)_{n+1} / (1 + alpha) + F_{n+1} - alpha / (1 + alpha) F_n,   F = C_q^T lambda - Q
+//   r_c = C(q_{n+1}, t_{n+1}) / (beta h^2)
+// with q_{n+1}, v_{n+1} from Newmark's formulas. Newton matrix
+//   [ M/(1+alpha) + beta h^2 (K_Ma/(1+alpha) + K_C - Q_q) - gamma h Q_v ,  C_q^T ]
+//   [ C_q                                                              ,  0     ]
+//
+// Quaternion groups, `modified = true`: OUR modification (not the formulas of Sherif et
+// al. 2019, which the material available to us did not reveal). For each group of Euler
+// parameters e (scalar first) the Newmark formulas act on the body angular velocity
+// omega = 2 G(e) e' and acceleration omega' = 2 G(e) e'' instead of on e', e'':
+//   omega'_n = 2 G(e_n) a_n,  omega'_{n+1} = 2 G(e_{n+1}) a_{n+1}
+//   theta   = h omega_n + h^2 [(1/2 - beta) omega'_n + beta omega'_{n+1}]
+//   omega_{n+1} = omega_n + h [(1 - gamma) omega'_n + gamma omega'_{n+1}]
+//   e_{n+1} = (1 + rho) e_n (x) exp(theta / 2),   e'_{n+1} = G(e_{n+1})^T omega_{n+1} / 2
+//             + gamma h s e_{n+1}
+//   rho = beta h^2 s,  s = e_{n+1}^T a_{n+1} + |e'_{n+1}|^2   (acceleration-level
+//   normalisation defect; it is zero at convergence because the normalisation
+//   constraint then forces rho = 0).
+// Here G(e) is Nikravesh's 3x4 body matrix, (x) the quaternion product and
+// exp(theta/2) = (cos|theta|/2, sin(|theta|/2) theta/|theta|). For a rotation about a
+// fixed principal axis omega, omega' keep their direction, so the update is exactly
+// Newmark's for the rotation angle: with alpha = 0 a constant moment gives
+// omega_{n+1} = omega_n + h M / J exactly (trapezoidal rule on a constant). The
+// dependence of e_{n+1} on G(e_{n+1}) is resolved inside the Newton iteration (G is
+// taken at the previous iterate); the Newton matrix is the classical one, which is the
+// first-order approximation of the modified map (dq/da = beta h^2 I, dv/da = gamma h I).
 #include "dae/hht.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "dae/klu_solver.h"
+
+namespace mbdae::dae {
+
+bool HhtOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& why) {
+    if (error) *error = "HhtOptions: " + why;
+    return false;
+  };
+  if (!(alpha >= -1.0 / 3.0 && alpha <= 0.0))
+    return fail("alpha = " + std::to_string(alpha) + " is outside [-1/3, 0]");
+  if (!(step > 0) || !std::isfinite(step)) return fail("step must be positive and finite");
+  if (!(min_step > 0)) return fail("min_step must be positive");
+  if (min_step > step) return fail("min_step is larger than step");
+  if (max_step < 0) return fail("max_step must be >= 0 (0: no limit)");
+  if (max_step > 0 && max_step < min_step) return fail("max_step is smaller than min_step");
+  if (adaptive && !(tolerance > 0)) return fail("tolerance must be positive");
+  if (!(newton_tolerance > 0)) return fail("newton_tolerance must be positive");
+  if (max_newton_iterations < 1) return fail("max_newton_iterations must be >= 1");
+  if (!(jacobian_reuse_rate > 0 && jacobian_reuse_rate < 1))
+    return fail("jacobian_reuse_rate must be in (0, 1)");
+  if (max_steps_same_jacobian < 1) return fail("max_steps_same_jacobian must be >= 1");
+  return true;
+}
+
+namespace {
+
+// Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'.
+// Gx(e, x) = G(e) x (x: 4), Gt(e, y) = G(e)^T y (y: 3). Both bilinear.
+inline void Gx(const double* e, const double* x, double* out) {
+  out[0] = -e[1] * x[0] + e[0] * x[1] + e[3] * x[2] - e[2] * x[3];
+  out[1] = -e[2] * x[0] - e[3] * x[1] + e[0] * x[2] + e[1] * x[3];
+  out[2] = -e[3] * x[0] + e[2] * x[1] - e[1] * x[2] + e[0] * x[3];
+}
+inline void Gt(const double* e, const double* y, double* out) {
+  out[0] = -e[1] * y[0] - e[2] * y[1] - e[3] * y[2];
+  out[1] = e[0] * y[0] - e[3] * y[1] + e[2] * y[2];
+  out[2] = e[3] * y[0] + e[0] * y[1] - e[1] * y[2];
+  out[3] = -e[2] * y[0] + e[1] * y[1] + e[0] * y[2];
+}
+// out = p (x) r, Hamilton product, scalar first.
+inline void QuatMul(const double* p, const double* r, double* out) {
+  out[0] = p[0] * r[0] - p[1] * r[1] - p[2] * r[2] - p[3] * r[3];
+  out[1] = p[0] * r[1] + p[1] * r[0] + p[2] * r[3] - p[3] * r[2];
+  out[2] = p[0] * r[2] - p[1] * r[3] + p[2] * r[0] + p[3] * r[1];
+  out[3] = p[0] * r[3] + p[1] * r[2] - p[2] * r[1] + p[3] * r[0];
+}
+
+class HhtIntegrator final : public Integrator {
+ public:
+  HhtIntegrator(MechanicalSystem& system, const HhtOptions& options)
+      : sys_(system), opt_(options) {
+    std::string err;
+    if (!opt_.IsValid(&err)) throw std::invalid_argument(err);
+    nq_ = sys_.num_coordinates();
+    nc_ = sys_.num_constraints();
+    if (nq_ <= 0) throw std::invalid_argument("HHT: the system has no coordinates");
+    alpha_ = opt_.alpha;
+    beta_ = (1 - alpha_) * (1 - alpha_) / 4;
+    gamma_ = 0.5 - alpha_;
+    for (int g : sys_.quaternion_offsets())
+      if (g < 0 || g + 4 > nq_)
+        throw std::invalid_argument("HHT: quaternion offset " + std::to_string(g) +
+                                    " outside the coordinates");
+
+    // Matrix buffers and the Newton-matrix pattern, computed once.
+    for (int m = 0; m < kNumMatrices; ++m) {
+      const CscPattern& p = sys_.pattern(static_cast<Matrix>(m));
+      if (!p.IsValid(&err))
+        throw std::invalid_argument("HHT: pattern of matrix " + std::to_string(m) + ": " + err);
+      mat_[m].assign(p.nnz(), 0.0);
+    }
+    auto check_dims = [&](Matrix m, int rows, const char* name) {
+      const CscPattern& p = sys_.pattern(m);
+      if (p.rows != rows || p.cols != nq_)
+        throw std::invalid_argument(std::string("HHT: pattern of ") + name + " is " +
+                                    std::to_string(p.rows) + " x " + std::to_string(p.cols) +
+                                    ", expected " + std::to_string(rows) + " x " +
+                                    std::to_string(nq_));
+    };
+    check_dims(Matrix::kMass, nq_, "M");
+    check_dims(Matrix::kMassTimesAccDq, nq_, "d(Ma)/dq");
+    check_dims(Matrix::kForceDq, nq_, "dQ/dq");
+    check_dims(Matrix::kForceDv, nq_, "dQ/dv");
+    check_dims(Matrix::kConstraintDq, nc_, "C_q");
+    check_dims(Matrix::kConstraintTDq, nq_, "d(C_q^T w)/dq");
+    b_mass_ = asm_.AddBlock(sys_.pattern(Matrix::kMass), 0, 0);
+    b_kma_ = asm_.AddBlock(sys_.pattern(Matrix::kMassTimesAccDq), 0, 0);
+    b_kc_ = asm_.AddBlock(sys_.pattern(Matrix::kConstraintTDq), 0, 0);
+    b_qq_ = asm_.AddBlock(sys_.pattern(Matrix::kForceDq), 0, 0);
+    b_qv_ = asm_.AddBlock(sys_.pattern(Matrix::kForceDv), 0, 0);
+    b_cqt_ = asm_.AddBlock(sys_.pattern(Matrix::kConstraintDq), 0, nq_, /*transpose=*/true);
+    b_cq_ = asm_.AddBlock(sys_.pattern(Matrix::kConstraintDq), nq_, 0);
+    std::vector<std::pair<int, int>> diag;
+    for (int i = 0; i < nq_ + nc_; ++i) diag.push_back({i, i});
+    b_diag_ = asm_.AddEntries(diag);
+    asm_.Finalize(nq_ + nc_, nq_ + nc_);
+    jac_.assign(asm_.pattern().nnz(), 0.0);
+    klu_ = std::make_unique<KluSolver>(asm_.pattern());
+
+    const int n = nq_ + nc_;
+    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_}) v->assign(nq_, 0.0);
+    for (auto* v : {&lamn_, &con_}) v->assign(nc_, 0.0);
+    res_.assign(n, 0.0);
+    x_.assign(n, 0.0);
+    state_.Resize(nq_, nc_);
+  }
+
+  void Initialize(const State& x0) override {
+    if (static_cast<int>(x0.q.size()) != nq_ || static_cast<int>(x0.v.size()) != nq_ ||
+        static_cast<int>(x0.a.size()) != nq_ || static_cast<int>(x0.lambda.size()) != nc_)
+      throw std::invalid_argument("HHT::Initialize: state sizes do not match the system (nq = " +
+                                  std::to_string(nq_) + ", nc = " + std::to_string(nc_) + ")");
+    state_ = x0;
+    summary_ = Summary();
+    summary_.status = Summary::Status::kRunning;
+    summary_.t_reached = x0.t;
+    h_ = opt_.step;
+    if (opt_.max_step > 0) h_ = std::min(h_, opt_.max_step);
+    jacobian_fresh_ = false;
+    jacobian_valid_ = false;
+    jacobian_h_ = 0;
+    steps_with_jacobian_ = 0;
+    // F_0 = C_q^T lambda_0 - Q(q_0, v_0, t_0).
+    initialized_ = EvaluateF(state_.t, state_.q.data(), state_.v.data(), state_.lambda.data(),
+                             fn_.data()) == 0;
+    if (!initialized_) {
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = std::string("evaluation at the initial state failed: ") + sys_.last_error();
+    }
+  }
+
+  bool AdvanceTo(double t_target) override {
+    if (!initialized_) {
+      if (summary_.status != Summary::Status::kFailed) {
+        summary_.status = Summary::Status::kFailed;
+        summary_.message = "AdvanceTo called before Initialize";
+      }
+      return false;
+    }
+    if (!(t_target > state_.t)) {
+      if (t_target == state_.t) return true;
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = "AdvanceTo: target " + std::to_string(t_target) +
+                         " is before the current time " + std::to_string(state_.t);
+      return false;
+    }
+    summary_.status = Summary::Status::kRunning;
+    const double h_nominal_fixed = opt_.max_step > 0 ? std::min(opt_.step, opt_.max_step) : opt_.step;
+    while (state_.t < t_target) {
+      const double remaining = t_target - state_.t;
+      double h = h_;
+      bool last = false;
+      if (remaining <= h * (1 + 1e-3)) {
+        h = remaining;  // hit the target, stretching by at most 0.1 %
+        last = true;
+      } else if (remaining < 2 * h && remaining - h < 0.25 * h) {
+        h = remaining / 2;  // avoid a tiny leftover step: split evenly
+      }
+      if (h < opt_.min_step && !last) h = opt_.min_step;
+      const StepResult r = TryStep(h);
+      if (r == StepResult::kFatal) return Fail(message_);
+      if (r == StepResult::kNewtonFailure) {
+        ++summary_.steps_rejected;
+        h_ = h / 2;
+        if (h_ < opt_.min_step)
+          return Fail("Newton iteration failed at t = " + std::to_string(state_.t) +
+                      " with the step reduced below min_step = " + std::to_string(opt_.min_step) +
+                      (message_.empty() ? "" : " (" + message_ + ")"));
+        continue;
+      }
+      // Converged: error test in adaptive mode.
+      double h_next = h;
+      if (opt_.adaptive) {
+        const double err = ErrorNorm(h);
+        // Local error O(h^3): exponent 1/3; safety 0.9, growth in [0.2, 2].
+        const double factor =
+            err > 0 ? std::clamp(0.9 * std::pow(err, -1.0 / 3.0), 0.2, 2.0) : 2.0;
+        if (err > 1.0) {
+          ++summary_.steps_rejected;
+          h_ = h * std::min(factor, 0.9);
+          if (h_ < opt_.min_step)
+            return Fail("error test failed at t = " + std::to_string(state_.t) +
+                        " with the step at min_step = " + std::to_string(opt_.min_step));
+          continue;
+        }
+        h_next = h * factor;
+        if (h < h_) h_next = std::max(h_next, h_);  // a step shortened to hit the target
+        if (opt_.max_step > 0) h_next = std::min(h_next, opt_.max_step);
+      } else {
+        // Fixed step: come back to the nominal step after temporary reductions.
+        h_next = std::min(h_nominal_fixed, 2 * h_);
+      }
+      Accept(h, last ? t_target : state_.t + h);
+      h_ = std::max(h_next, opt_.min_step);
+    }
+    summary_.status = Summary::Status::kDone;
+    summary_.message.clear();
+    return true;
+  }
+
+  const State& state() const override { return state_; }
+  const Summary& summary() const override { return summary_; }
+  std::string name() const override {
+    return std::string(opt_.modified ? "HHT (modified for Euler parameters)" : "HHT") +
+           ", alpha = " + std::to_string(alpha_);
+  }
+
+ private:
+  enum class StepResult { kOk, kNewtonFailure, kFatal };
+
+  bool Fail(const std::string& why) {
+    summary_.status = Summary::Status::kFailed;
+    summary_.message = why;
+    summary_.t_reached = state_.t;
+    return false;
+  }
+
+  // f = C_q^T lambda - Q(q, v, t). Uses the C_q buffer.
+  int EvaluateF(double t, const double* q, const double* v, const double* lam, double* f) {
+    EvalInput in;
+    in.t = t;
+    in.q = q;
+    in.v = v;
+    EvalOutput out;
+    out.force = force_.data();
+    out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+    const int rc = sys_.Evaluate(in, out);
+    ++summary_.residual_evaluations;
+    if (rc != 0) return rc;
+    for (int i = 0; i < nq_; ++i) f[i] = -force_[i];
+    MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq),
+                         mat_[static_cast<int>(Matrix::kConstraintDq)].data(), 1.0, lam, f);
+    return 0;
+  }
+
+  // q_{n+1}, v_{n+1} from a_{n+1} (Newmark, and the modified map for quaternions).
+  void Kinematics(double h) {
+    const std::vector<double>& q0 = state_.q;
+    const std::vector<double>& v0 = state_.v;
+    const std::vector<double>& a0 = state_.a;
+    for (int i = 0; i < nq_; ++i) {
+      qn_[i] = q0[i] + h * v0[i] + h * h * ((0.5 - beta_) * a0[i] + beta_ * an_[i]);
+      vn_[i] = v0[i] + h * ((1 - gamma_) * a0[i] + gamma_ * an_[i]);
+    }
+    if (!opt_.modified) return;
+    for (int g : sys_.quaternion_offsets()) {
+      const double* e0 = &q0[g];
+      double* e1 = &qn_[g];
+      // G at the previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start.
+      const double* eg = &e_iter_[g];
+      double w0[3], dw0[3], dw1[3], th[3], w1[3];
+      Gx(e0, &v0[g], w0);
+      Gx(e0, &a0[g], dw0);
+      Gx(eg, &an_[g], dw1);
+      for (int k = 0; k < 3; ++k) {
+        w0[k] *= 2;
+        dw0[k] *= 2;
+        dw1[k] *= 2;
+        th[k] = h * w0[k] + h * h * ((0.5 - beta_) * dw0[k] + beta_ * dw1[k]);
+        w1[k] = w0[k] + h * ((1 - gamma_) * dw0[k] + gamma_ * dw1[k]);
+      }
+      const double ang = std::sqrt(th[0] * th[0] + th[1] * th[1] + th[2] * th[2]);
+      double r[4];
+      r[0] = std::cos(ang / 2);
+      const double sc = ang > 1e-8 ? std::sin(ang / 2) / ang : 0.5 - ang * ang / 48;
+      for (int k = 0; k < 3; ++k) r[k + 1] = sc * th[k];
+      double eu[4];
+      QuatMul(e0, r, eu);
+      double* ed = &vn_[g];
+      Gt(eu, w1, ed);
+      double s = 0;
+      for (int k = 0; k < 4; ++k) {
+        ed[k] *= 0.5;
+        s += eu[k] * an_[g + k] + ed[k] * ed[k];
+      }
+      const double rho = beta_ * h * h * s;
+      for (int k = 0; k < 4; ++k) {
+        e1[k] = (1 + rho) * eu[k];
+        ed[k] += gamma_ * h * s * eu[k];
+      }
+    }
+  }
+
+  // Residual at the current iterate (an_, lamn_); fills res_, f_ (F_{n+1}).
+  int Residual(double t1, double h) {
+    EvalInput in;
+    in.t = t1;
+    in.q = qn_.data();
+    in.v = vn_.data();
+    EvalOutput out;
+    out.force = force_.data();
+    out.constraint = con_.data();
+    out[Matrix::kMass] = mat_[static_cast<int>(Matrix::kMass)].data();
+    out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+    const int rc = sys_.Evaluate(in, out);
+    ++summary_.residual_evaluations;
+    if (rc != 0) return rc;
+    const double s = 1 / (1 + alpha_);
+    for (int i = 0; i < nq_; ++i) f_[i] = -force_[i];
+    MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq),
+                         mat_[static_cast<int>(Matrix::kConstraintDq)].data(), 1.0, lamn_.data(),
+                         f_.data());
+    for (int i = 0; i < nq_; ++i) res_[i] = f_[i] - alpha_ * s * fn_[i];
+    MultiplyAdd(sys_.pattern(Matrix::kMass), mat_[static_cast<int>(Matrix::kMass)].data(), s,
+                an_.data(), res_.data());
+    const double sc = 1 / (beta_ * h * h);
+    for (int j = 0; j < nc_; ++j) res_[nq_ + j] = sc * con_[j];
+    for (double r : res_)
+      if (!std::isfinite(r)) return 1;
+    return 0;
+  }
+
+  // Evaluates the Jacobians at the current iterate and factorises the Newton matrix.
+  int NewtonMatrix(double t1, double h, std::string* error) {
+    EvalInput in;
+    in.t = t1;
+    in.q = qn_.data();
+    in.v = vn_.data();
+    in.a = an_.data();
+    in.w = lamn_.data();
+    EvalOutput out;
+    for (int m = 0; m < kNumMatrices; ++m)
+      if (m != static_cast<int>(Matrix::kConstraintVelDq)) out.matrix[m] = mat_[m].data();
+    const int rc = sys_.Evaluate(in, out);
+    ++summary_.jacobian_evaluations;
+    if (rc != 0) {
+      *error = sys_.last_error();
+      return rc;
+    }
+    auto M = [&](Matrix m) { return mat_[static_cast<int>(m)].data(); };
+    const double s = 1 / (1 + alpha_), bh2 = beta_ * h * h;
+    asm_.SetZero(jac_.data());
+    asm_.Accumulate(b_mass_, M(Matrix::kMass), s, jac_.data());
+    asm_.Accumulate(b_kma_, M(Matrix::kMassTimesAccDq), bh2 * s, jac_.data());
+    asm_.Accumulate(b_kc_, M(Matrix::kConstraintTDq), bh2, jac_.data());
+    asm_.Accumulate(b_qq_, M(Matrix::kForceDq), -bh2, jac_.data());
+    asm_.Accumulate(b_qv_, M(Matrix::kForceDv), -gamma_ * h, jac_.data());
+    asm_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), 1.0, jac_.data());
+    asm_.Accumulate(b_cq_, M(Matrix::kConstraintDq), 1.0, jac_.data());
+    ++summary_.factorizations;
+    if (!klu_->Factor(jac_.data(), error)) return 1;
+    jacobian_valid_ = true;
+    jacobian_fresh_ = true;
+    jacobian_h_ = h;
+    steps_with_jacobian_ = 0;
+    return 0;
+  }
+
+  // Weighted RMS norm of the position- and velocity-level Newton correction.
+  double CorrectionNorm(double h) const {
+    double sum = 0;
+    for (int i = 0; i < nq_; ++i) {
+      const double dq = beta_ * h * h * x_[i] / (1 + std::abs(qn_[i]));
+      const double dv = gamma_ * h * x_[i] / (1 + std::abs(vn_[i]));
+      sum += dq * dq + dv * dv;
+    }
+    return std::sqrt(sum / (2 * nq_));
+  }
+
+  double NewtonThreshold() const {
+    return opt_.adaptive ? std::max(opt_.newton_tolerance, 1e-3 * opt_.tolerance)
+                         : opt_.newton_tolerance;
+  }
+
+  // One step of size h from state_; on success an_, lamn_, qn_, vn_, f_ hold the new state.
+  StepResult TryStep(double h) {
+    const double t1 = state_.t + h;
+    message_.clear();
+    // The Newton matrix depends on h: refresh when h changed or it is old.
+    const bool stale = !jacobian_valid_ || jacobian_h_ != h ||
+                       steps_with_jacobian_ >= opt_.max_steps_same_jacobian;
+    bool retried = false;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      // Predictor: a_{n+1} = a_n, lambda_{n+1} = lambda_n.
+      std::copy(state_.a.begin(), state_.a.end(), an_.begin());
+      std::copy(state_.lambda.begin(), state_.lambda.end(), lamn_.begin());
+      e_iter_ = state_.q;  // no allocation: same size
+      Kinematics(h);
+      jacobian_fresh_ = false;
+      if ((attempt == 0 && stale) || attempt == 1) {
+        std::string err;
+        const int rc = NewtonMatrix(t1, h, &err);
+        if (rc < 0) {
+          message_ = "Jacobian evaluation failed: " + err;
+          return StepResult::kFatal;
+        }
+        if (rc > 0) {
+          message_ = err;
+          jacobian_valid_ = false;
+          return StepResult::kNewtonFailure;
+        }
+      }
+      double prev_norm = 0;
+      bool converged = false, diverged = false;
+      for (int it = 0; it < opt_.max_newton_iterations; ++it) {
+        const int rc = Residual(t1, h);
+        if (rc < 0) {
+          message_ = std::string("residual evaluation failed: ") + sys_.last_error();
+          return StepResult::kFatal;
+        }
+        if (rc > 0) {
+          diverged = true;
+          break;
+        }
+        ++summary_.newton_iterations;
+        for (int i = 0; i < nq_ + nc_; ++i) x_[i] = -res_[i];
+        klu_->Solve(x_.data());
+        for (int i = 0; i < nq_; ++i) an_[i] += x_[i];
+        for (int j = 0; j < nc_; ++j) lamn_[j] += x_[nq_ + j];
+        const double norm = CorrectionNorm(h);
+        if (!std::isfinite(norm)) {
+          diverged = true;
+          break;
+        }
+        if (opt_.modified)
+          for (int g : sys_.quaternion_offsets())
+            for (int k = 0; k < 4; ++k) e_iter_[g + k] = qn_[g + k];
+        Kinematics(h);
+        if (norm <= NewtonThreshold()) {
+          converged = true;
+          break;
+        }
+        if (it > 0) {
+          const double rate = norm / prev_norm;
+          if (rate > 1.0) {
+            diverged = true;
+            break;
+          }
+          // Slow convergence: use a fresh matrix from the next step on.
+          if (rate > opt_.jacobian_reuse_rate) jacobian_valid_ = false;
+        }
+        prev_norm = norm;
+      }
+      if (converged) {
+        // F_{n+1} at the converged state for the next step's HHT term.
+        const int rc = EvaluateF(t1, qn_.data(), vn_.data(), lamn_.data(), f_.data());
+        if (rc < 0) {
+          message_ = std::string("evaluation failed: ") + sys_.last_error();
+          return StepResult::kFatal;
+        }
+        if (rc > 0) return StepResult::kNewtonFailure;
+        return StepResult::kOk;
+      }
+      (void)diverged;
+      // Failure with an old matrix: refresh it and retry once with the same h.
+      if (jacobian_fresh_ || retried) break;
+      retried = true;
+    }
+    jacobian_valid_ = false;
+    message_ = "no convergence in " + std::to_string(opt_.max_newton_iterations) +
+               " Newton iterations";
+    return StepResult::kNewtonFailure;
+  }
+
+  // Weighted RMS of the local position error estimate (beta - 1/6) h^2 (a_{n+1} - a_n)
+  // (Zienkiewicz & Xie, Earthquake Eng. Struct. Dyn. 20 (1991) 871-887; the same
+  // leading Newmark term is the basis of the estimate in Negrut et al. 2007).
+  double ErrorNorm(double h) const {
+    const double tol = opt_.tolerance;
+    double sum = 0;
+    for (int i = 0; i < nq_; ++i) {
+      const double e = (beta_ - 1.0 / 6.0) * h * h * (an_[i] - state_.a[i]);
+      const double w = tol + tol * std::max(std::abs(qn_[i]), std::abs(state_.q[i]));
+      sum += (e / w) * (e / w);
+    }
+    return std::sqrt(sum / nq_);
+  }
+
+  void Accept(double h, double t1) {
+    state_.t = t1;
+    std::copy(qn_.begin(), qn_.end(), state_.q.begin());
+    std::copy(vn_.begin(), vn_.end(), state_.v.begin());
+    std::copy(an_.begin(), an_.end(), state_.a.begin());
+    std::copy(lamn_.begin(), lamn_.end(), state_.lambda.begin());
+    std::copy(f_.begin(), f_.end(), fn_.begin());
+    ++summary_.steps_accepted;
+    ++steps_with_jacobian_;
+    summary_.t_reached = t1;
+    summary_.h_last = h;
+  }
+
+  MechanicalSystem& sys_;
+  HhtOptions opt_;
+  int nq_ = 0, nc_ = 0;
+  double alpha_ = 0, beta_ = 0, gamma_ = 0;
+  std::vector<double> mat_[kNumMatrices];
+  BlockAssembler asm_;
+  int b_mass_ = 0, b_kma_ = 0, b_kc_ = 0, b_qq_ = 0, b_qv_ = 0, b_cqt_ = 0, b_cq_ = 0,
+      b_diag_ = 0;
+  std::vector<double> jac_;
+  std::unique_ptr<KluSolver> klu_;
+  // Work vectors (sized in the constructor; no allocation while stepping).
+  std::vector<double> qn_, vn_, an_, lamn_, fn_, f_, force_, con_, res_, x_;
+  std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)
+  State state_;
+  Summary summary_;
+  std::string message_;
+  double h_ = 0;
+  double jacobian_h_ = 0;
+  bool jacobian_valid_ = false, jacobian_fresh_ = false, initialized_ = false;
+  int steps_with_jacobian_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<Integrator> MakeHhtIntegrator(MechanicalSystem& system, const HhtOptions& options) {
+  return std::make_unique<HhtIntegrator>(system, options);
+}
+
+}  // namespace mbdae::dae

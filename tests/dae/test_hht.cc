@@ -1,0 +1,400 @@
+// HHT integrator: convergence order, the modified scheme for Euler parameters,
+// adaptivity, repeatability and failure reporting; and the derivatives of the
+// free-body test system against finite differences.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <random>
+
+#include "dae/hht.h"
+#include "tests/support/free_body_system.h"
+#include "tests/support/pendulum_system.h"
+
+namespace mbdae::dae {
+namespace {
+
+using testing::FreeBodySystem;
+using testing::PendulumSystem;
+
+Eigen::MatrixXd Dense(const CscPattern& p, const std::vector<double>& v) {
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(p.rows, p.cols);
+  for (int c = 0; c < p.cols; ++c)
+    for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k) A(p.row_index[k], c) = v[k];
+  return A;
+}
+
+// Consistent a, lambda at (q, v, t): [M C_q^T; C_q 0] [a; lambda] = [Q; gamma].
+State ConsistentState(MechanicalSystem& sys, std::vector<double> q, std::vector<double> v,
+                      double t = 0) {
+  const int nq = sys.num_coordinates(), nc = sys.num_constraints();
+  std::vector<double> Q(nq), g(nc), M(sys.pattern(Matrix::kMass).nnz()),
+      C(sys.pattern(Matrix::kConstraintDq).nnz());
+  EvalInput in;
+  in.t = t;
+  in.q = q.data();
+  in.v = v.data();
+  EvalOutput out;
+  out.force = Q.data();
+  out.acc_rhs = g.data();
+  out[Matrix::kMass] = M.data();
+  out[Matrix::kConstraintDq] = C.data();
+  EXPECT_EQ(sys.Evaluate(in, out), 0);
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(nq + nc, nq + nc);
+  A.topLeftCorner(nq, nq) = Dense(sys.pattern(Matrix::kMass), M);
+  const Eigen::MatrixXd Cq = Dense(sys.pattern(Matrix::kConstraintDq), C);
+  A.topRightCorner(nq, nc) = Cq.transpose();
+  A.bottomLeftCorner(nc, nq) = Cq;
+  Eigen::VectorXd b(nq + nc);
+  for (int i = 0; i < nq; ++i) b[i] = Q[i];
+  for (int j = 0; j < nc; ++j) b[nq + j] = g[j];
+  const Eigen::VectorXd x = A.fullPivLu().solve(b);
+  State s;
+  s.t = t;
+  s.q = q;
+  s.v = v;
+  s.a.assign(x.data(), x.data() + nq);
+  s.lambda.assign(x.data() + nq, x.data() + nq + nc);
+  return s;
+}
+
+// ---------------------------------------------------------------------------------
+// Free body: derivatives against central finite differences.
+
+TEST(FreeBodySystem, DerivativesMatchFiniteDifferences) {
+  FreeBodySystem sys(2.0, {0.7, 1.3, 2.1}, {0.1, -0.2, 0.3}, {0.4, -0.5, 0.6});
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const int nq = 7;
+  for (int trial = 0; trial < 5; ++trial) {
+    std::vector<double> q(nq), v(nq), a(nq), w(1);
+    for (auto* x : {&q, &v, &a})
+      for (double& y : *x) y = u(rng);
+    w[0] = u(rng);
+    // Evaluates everything at (q, v).
+    struct Out {
+      std::vector<double> Q, C, M, Kma, Qq, Qv, Cq, Kc, Kcv, gam;
+    };
+    auto eval = [&](const std::vector<double>& qq, const std::vector<double>& vv) {
+      Out o;
+      o.Q.resize(nq);
+      o.C.resize(1);
+      o.gam.resize(1);
+      o.M.resize(sys.pattern(Matrix::kMass).nnz());
+      o.Kma.resize(16);
+      o.Qq.resize(16);
+      o.Qv.resize(16);
+      o.Kc.resize(16);
+      o.Cq.resize(4);
+      o.Kcv.resize(4);
+      EvalInput in;
+      in.q = qq.data();
+      in.v = vv.data();
+      in.a = a.data();
+      in.w = w.data();
+      EvalOutput out;
+      out.force = o.Q.data();
+      out.constraint = o.C.data();
+      out.acc_rhs = o.gam.data();
+      out[Matrix::kMass] = o.M.data();
+      out[Matrix::kMassTimesAccDq] = o.Kma.data();
+      out[Matrix::kForceDq] = o.Qq.data();
+      out[Matrix::kForceDv] = o.Qv.data();
+      out[Matrix::kConstraintDq] = o.Cq.data();
+      out[Matrix::kConstraintTDq] = o.Kc.data();
+      out[Matrix::kConstraintVelDq] = o.Kcv.data();
+      EXPECT_EQ(sys.Evaluate(in, out), 0);
+      return o;
+    };
+    const Out o = eval(q, v);
+    const Eigen::MatrixXd M = Dense(sys.pattern(Matrix::kMass), o.M);
+    EXPECT_LT((M - M.transpose()).norm(), 1e-14);
+    const Eigen::MatrixXd Kma = Dense(sys.pattern(Matrix::kMassTimesAccDq), o.Kma);
+    const Eigen::MatrixXd Qq = Dense(sys.pattern(Matrix::kForceDq), o.Qq);
+    const Eigen::MatrixXd Qv = Dense(sys.pattern(Matrix::kForceDv), o.Qv);
+    const Eigen::MatrixXd Cq = Dense(sys.pattern(Matrix::kConstraintDq), o.Cq);
+    const Eigen::MatrixXd Kc = Dense(sys.pattern(Matrix::kConstraintTDq), o.Kc);
+    const Eigen::MatrixXd Kcv = Dense(sys.pattern(Matrix::kConstraintVelDq), o.Kcv);
+    const Eigen::Map<const Eigen::VectorXd> av(a.data(), nq), vv(v.data(), nq);
+    const double eps = 1e-6, tol = 1e-7;
+    for (int j = 0; j < nq; ++j) {
+      std::vector<double> qp = q, qm = q, vp = v, vm = v;
+      qp[j] += eps;
+      qm[j] -= eps;
+      vp[j] += eps;
+      vm[j] -= eps;
+      const Out p = eval(qp, v), m = eval(qm, v), pv = eval(q, vp), mv = eval(q, vm);
+      const Eigen::VectorXd dMa = (Dense(sys.pattern(Matrix::kMass), p.M) * av -
+                                   Dense(sys.pattern(Matrix::kMass), m.M) * av) / (2 * eps);
+      const Eigen::MatrixXd Cqp = Dense(sys.pattern(Matrix::kConstraintDq), p.Cq);
+      const Eigen::MatrixXd Cqm = Dense(sys.pattern(Matrix::kConstraintDq), m.Cq);
+      const Eigen::VectorXd dCtw = (Cqp.transpose() - Cqm.transpose()) * w[0] / (2 * eps);
+      const Eigen::VectorXd dCv = (Cqp - Cqm) * vv / (2 * eps);
+      for (int i = 0; i < nq; ++i) {
+        EXPECT_NEAR(Kma(i, j), dMa[i], tol) << "d(Ma)/dq (" << i << ", " << j << ")";
+        EXPECT_NEAR(Qq(i, j), (p.Q[i] - m.Q[i]) / (2 * eps), tol) << "dQ/dq " << i << " " << j;
+        EXPECT_NEAR(Qv(i, j), (pv.Q[i] - mv.Q[i]) / (2 * eps), tol) << "dQ/dv " << i << " " << j;
+        EXPECT_NEAR(Kc(i, j), dCtw[i], tol) << "d(Cq^T w)/dq " << i << " " << j;
+      }
+      EXPECT_NEAR(Cq(0, j), (p.C[0] - m.C[0]) / (2 * eps), tol) << "C_q " << j;
+      EXPECT_NEAR(Kcv(0, j), dCv[0], tol) << "d(C_q v)/dq " << j;
+    }
+    // gamma = -(C_q v)_q v.
+    EXPECT_NEAR(o.gam[0], -(Kcv * vv)(0), 1e-13);
+  }
+}
+
+// The free body's equations reproduce Euler's equations: J omega' + omega x J omega = n.
+TEST(FreeBodySystem, ConsistentAccelerationGivesEulerEquations) {
+  const std::array<double, 3> J = {0.7, 1.3, 2.1}, n = {0.4, -0.5, 0.6};
+  FreeBodySystem sys(2.0, J, {0, 0, 0}, n);
+  // Unit e, and e' = G(e)^T omega / 2 for a chosen body angular velocity.
+  std::vector<double> q = {0, 0, 0, 0.5, 0.5, -0.5, 0.5}, v(7, 0.0);
+  const double w[3] = {0.3, -1.1, 0.8};
+  FreeBodySystem::Gt(&q[3], w, &v[3]);
+  for (int k = 3; k < 7; ++k) v[k] *= 0.5;
+  const State s = ConsistentState(sys, q, v);
+  // omega' = 2 G(e) e'' (G(e') e' = 0).
+  double dw[3];
+  FreeBodySystem::Gx(&q[3], &s.a[3], dw);
+  for (double& x : dw) x *= 2;
+  const double Jw[3] = {J[0] * w[0], J[1] * w[1], J[2] * w[2]};
+  const double cross[3] = {w[1] * Jw[2] - w[2] * Jw[1], w[2] * Jw[0] - w[0] * Jw[2],
+                           w[0] * Jw[1] - w[1] * Jw[0]};
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(J[k] * dw[k] + cross[k], n[k], 1e-12) << k;
+}
+
+// ---------------------------------------------------------------------------------
+// Pendulum reference: theta'' = -(g/L) sin(theta), theta from the downward vertical,
+// integrated with classical RK4 at a tiny step; x = L sin(theta), y = -L cos(theta).
+std::array<double, 2> PendulumReference(double L, double g, double theta0, double t_end) {
+  const int n = 200000;
+  const double h = t_end / n;
+  double th = theta0, om = 0;
+  auto f = [&](double a) { return -(g / L) * std::sin(a); };
+  for (int i = 0; i < n; ++i) {
+    const double k1t = om, k1o = f(th);
+    const double k2t = om + 0.5 * h * k1o, k2o = f(th + 0.5 * h * k1t);
+    const double k3t = om + 0.5 * h * k2o, k3o = f(th + 0.5 * h * k2t);
+    const double k4t = om + h * k3o, k4o = f(th + h * k3t);
+    th += h / 6 * (k1t + 2 * k2t + 2 * k3t + k4t);
+    om += h / 6 * (k1o + 2 * k2o + 2 * k3o + k4o);
+  }
+  return {L * std::sin(th), -L * std::cos(th)};
+}
+
+double PendulumError(double alpha, double h, const std::array<double, 2>& ref,
+                     Summary* summary = nullptr) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.alpha = alpha;
+  opt.step = h;
+  opt.newton_tolerance = 1e-13;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  EXPECT_TRUE(integ->AdvanceTo(1.0)) << integ->summary().BriefReport();
+  EXPECT_EQ(integ->state().t, 1.0);
+  if (summary) *summary = integ->summary();
+  return std::hypot(integ->state().q[0] - ref[0], integ->state().q[1] - ref[1]);
+}
+
+class HhtOrder : public ::testing::TestWithParam<double> {};
+
+TEST_P(HhtOrder, PendulumPositionErrorIsSecondOrder) {
+  const auto ref = PendulumReference(1.0, 9.81, M_PI / 2, 1.0);
+  const double alpha = GetParam();
+  double prev = 0;
+  for (int k = 0; k < 5; ++k) {
+    const double h = 0.01 / (1 << k);
+    const double err = PendulumError(alpha, h, ref);
+    if (k > 0) {
+      const double ratio = prev / err;
+      EXPECT_NEAR(ratio, 4.0, 0.4) << "alpha = " << alpha << ", h = " << h << ", errors "
+                                   << prev << " -> " << err;
+    }
+    prev = err;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Alphas, HhtOrder, ::testing::Values(0.0, -0.1, -0.3));
+
+// ---------------------------------------------------------------------------------
+// Free body under a constant moment about a principal axis: omega = n t / J.
+
+double SpinUpError(double alpha, bool modified, double* omega_end = nullptr) {
+  const double J3 = 2.0, n3 = 0.5, t_end = 10.0;
+  FreeBodySystem sys(1.5, {1.0, 1.5, J3}, {0, 0, 0}, {0, 0, n3});
+  HhtOptions opt;
+  opt.alpha = alpha;
+  opt.step = 0.01;
+  opt.modified = modified;
+  opt.newton_tolerance = 1e-13;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  integ->Initialize(ConsistentState(sys, {0, 0, 0, 1, 0, 0, 0}, std::vector<double>(7, 0.0)));
+  EXPECT_TRUE(integ->AdvanceTo(t_end)) << integ->summary().BriefReport();
+  const State& s = integ->state();
+  const auto w = FreeBodySystem::Omega(&s.q[3], &s.v[3]);
+  const double exact = n3 * t_end / J3;
+  // Only the axis component may be non-zero.
+  EXPECT_NEAR(w[0], 0.0, 1e-12);
+  EXPECT_NEAR(w[1], 0.0, 1e-12);
+  if (omega_end) *omega_end = w[2];
+  return std::abs(w[2] - exact) / exact;
+}
+
+TEST(HhtModified, ConstantMomentSpinUpIsExactForAlphaZero) {
+  double w_mod = 0, w_cls = 0;
+  const double e_mod = SpinUpError(0.0, true, &w_mod);
+  const double e_cls = SpinUpError(0.0, false, &w_cls);
+  EXPECT_LT(e_mod, 1e-9) << "modified omega(10) = " << w_mod;
+  // Classical Newmark on Euler parameters spins up too slowly.
+  EXPECT_GT(e_cls, 1e-5) << "classical omega(10) = " << w_cls;
+  EXPECT_LT(w_cls, 2.5);
+  ::testing::Test::RecordProperty("modified_rel_error", std::to_string(e_mod));
+  ::testing::Test::RecordProperty("classical_rel_error", std::to_string(e_cls));
+  std::printf("alpha = 0: relative omega error modified %.3e, classical %.3e\n", e_mod, e_cls);
+}
+
+TEST(HhtModified, ModifiedBeatsClassicalWithDamping) {
+  for (double alpha : {-0.1, -0.3}) {
+    const double e_mod = SpinUpError(alpha, true);
+    const double e_cls = SpinUpError(alpha, false);
+    std::printf("alpha = %.1f: relative omega error modified %.3e, classical %.3e\n", alpha,
+                e_mod, e_cls);
+    EXPECT_LT(e_mod, e_cls) << "alpha = " << alpha;
+  }
+}
+
+// ---------------------------------------------------------------------------------
+
+TEST(HhtAdaptive, MeetsToleranceRoughlyAndLooserTakesFewerSteps) {
+  const auto ref = PendulumReference(1.0, 9.81, M_PI / 2, 1.0);
+  long steps[2];
+  double errs[2];
+  const double tols[2] = {1e-4, 1e-6};
+  for (int i = 0; i < 2; ++i) {
+    PendulumSystem sys(1.0, 1.0, 9.81);
+    HhtOptions opt;
+    opt.alpha = -0.1;
+    opt.adaptive = true;
+    opt.tolerance = tols[i];
+    opt.step = 1e-4;
+    auto integ = MakeHhtIntegrator(sys, opt);
+    integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+    ASSERT_TRUE(integ->AdvanceTo(1.0)) << integ->summary().BriefReport();
+    EXPECT_EQ(integ->state().t, 1.0);
+    steps[i] = integ->summary().steps_accepted;
+    errs[i] = std::hypot(integ->state().q[0] - ref[0], integ->state().q[1] - ref[1]);
+    std::printf("tol %.0e: %s, error %.3e\n", tols[i], integ->summary().BriefReport().c_str(),
+                errs[i]);
+    // The tolerance bounds the local error of each step: the global error stays below
+    // the sum of the local tolerances, and is not absurdly smaller than one of them.
+    EXPECT_LT(errs[i], steps[i] * tols[i]);
+    EXPECT_GT(errs[i], tols[i]);
+  }
+  EXPECT_LT(steps[0], steps[1]);
+  // 100 times tighter local tolerance: global error at least 5 times smaller.
+  EXPECT_LT(errs[1], errs[0] / 5);
+}
+
+TEST(Hht, RepeatedRunsAreIdenticalAndHitTheTarget) {
+  FreeBodySystem sys(1.5, {1.0, 1.5, 2.0}, {0.1, 0, 0}, {0.3, 0.2, 0.5});
+  HhtOptions opt;
+  opt.step = 0.3;  // 1.0 / 0.3 leaves a remainder: the last steps are adjusted
+  opt.alpha = -0.2;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  std::vector<double> v(7, 0.0);
+  v[4] = 0.5;  // e' = (0, 0.5, 0, 0) at e = (1,0,0,0): spin about body x
+  const State x0 = ConsistentState(sys, {0, 0, 0, 1, 0, 0, 0}, v);
+  State first;
+  Summary s1;
+  for (int run = 0; run < 2; ++run) {
+    integ->Initialize(x0);
+    ASSERT_TRUE(integ->AdvanceTo(0.5));
+    EXPECT_EQ(integ->state().t, 0.5);
+    ASSERT_TRUE(integ->AdvanceTo(1.0));
+    EXPECT_EQ(integ->state().t, 1.0);
+    if (run == 0) {
+      first = integ->state();
+      s1 = integ->summary();
+    } else {
+      EXPECT_EQ(integ->state().q, first.q);
+      EXPECT_EQ(integ->state().v, first.v);
+      EXPECT_EQ(integ->state().a, first.a);
+      EXPECT_EQ(integ->state().lambda, first.lambda);
+      EXPECT_EQ(integ->summary().steps_accepted, s1.steps_accepted);
+      EXPECT_EQ(integ->summary().newton_iterations, s1.newton_iterations);
+      EXPECT_EQ(integ->summary().factorizations, s1.factorizations);
+    }
+  }
+  EXPECT_EQ(integ->summary().status, Summary::Status::kDone);
+  // Normalisation holds.
+  const auto& q = integ->state().q;
+  EXPECT_NEAR(q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6], 1.0, 1e-9);
+}
+
+TEST(Hht, ReusesTheNewtonMatrixAcrossSteps) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.step = 1e-3;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  ASSERT_TRUE(integ->AdvanceTo(0.5));
+  const Summary& s = integ->summary();
+  EXPECT_EQ(s.steps_accepted, 500);
+  EXPECT_LT(s.factorizations, s.steps_accepted);
+  EXPECT_EQ(s.steps_rejected, 0);
+}
+
+// x^2 + y^2 + L^2 = 0 has no solution: Newton fails at every step size.
+class ImpossiblePendulum : public PendulumSystem {
+ public:
+  ImpossiblePendulum() : PendulumSystem(1.0, 1.0, 9.81) {}
+  int Evaluate(const EvalInput& in, EvalOutput& out) override {
+    const int rc = PendulumSystem::Evaluate(in, out);
+    if (out.constraint) out.constraint[0] += 2 * L_ * L_;
+    return rc;
+  }
+};
+
+TEST(Hht, ImpossibleConstraintFailsWithAMessage) {
+  ImpossiblePendulum sys;
+  HhtOptions opt;
+  opt.step = 1e-2;
+  opt.min_step = 1e-6;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  State x0;
+  x0.Resize(2, 1);
+  x0.q = {1.0, 0.0};
+  integ->Initialize(x0);
+  EXPECT_FALSE(integ->AdvanceTo(1.0));
+  const Summary& s = integ->summary();
+  EXPECT_EQ(s.status, Summary::Status::kFailed);
+  EXPECT_NE(s.message.find("min_step"), std::string::npos) << s.message;
+  EXPECT_EQ(s.t_reached, 0.0);
+  EXPECT_EQ(integ->state().t, 0.0);
+  EXPECT_GE(s.steps_rejected, 13);  // 1e-2 halved below 1e-6
+  EXPECT_NE(s.BriefReport().find("FAILED"), std::string::npos);
+}
+
+TEST(Hht, InvalidOptionsAreRejected) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  std::string err;
+  EXPECT_TRUE(opt.IsValid(&err));
+  opt.alpha = 0.2;
+  EXPECT_FALSE(opt.IsValid(&err));
+  EXPECT_NE(err.find("alpha"), std::string::npos);
+  EXPECT_THROW(MakeHhtIntegrator(sys, opt), std::invalid_argument);
+  opt = HhtOptions();
+  opt.step = -1;
+  EXPECT_THROW(MakeHhtIntegrator(sys, opt), std::invalid_argument);
+  opt = HhtOptions();
+  auto integ = MakeHhtIntegrator(sys, opt);
+  State bad;
+  bad.Resize(3, 1);
+  EXPECT_THROW(integ->Initialize(bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace mbdae::dae
