@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iomanip>
@@ -814,6 +815,10 @@ ModelError::ModelError(const SourceLocation& where, const std::string& element, 
     : std::runtime_error(FormatError(where, element, what)), where_(where), element_(element) {}
 
 Model LoadModel(const std::string& path, const LoadOptions& options) {
+  std::error_code ignored;
+  if (std::filesystem::is_directory(path, ignored)) {
+    throw ModelError(SourceLocation{path, 0, 0}, "model", "cannot read the file: it is a directory");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     throw ModelError(SourceLocation{path, 0, 0}, "model", std::string("cannot open the file: ") + std::strerror(errno));
