@@ -405,8 +405,9 @@ class HhtIntegrator final : public Integrator {
   StepResult TryStep(double h) {
     const double t1 = state_.t + h;
     message_.clear();
-    // The Newton matrix depends on h: refresh when h changed or it is old.
-    const bool stale = !jacobian_valid_ || jacobian_h_ != h ||
+    // The Newton matrix depends on h: refresh when h changed by more than 20 % (a
+    // smaller change only slows the convergence a little) or when it is old.
+    const bool stale = !jacobian_valid_ || std::abs(h / jacobian_h_ - 1) > 0.2 ||
                        steps_with_jacobian_ >= opt_.max_steps_same_jacobian;
     bool retried = false;
     for (int attempt = 0; attempt < 2; ++attempt) {
