@@ -253,7 +253,23 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
       if (singular) ThrowUndetermined(model, bodies);
     }
     std::string msg = Prefix(model) + "the model cannot be assembled";
-    auto joints = OwnersOf(sys, r.report.violated);
+    // Name the joints whose equations are violated at the initial state (where the
+    // user put the bodies), then those still violated where the projection stopped.
+    std::vector<int> violated;
+    {
+      std::vector<double> c(nc, 0.0);
+      dae::EvalInput in;
+      in.t = 0;
+      in.q = q0.data();
+      in.v = v0.data();
+      dae::EvalOutput out;
+      out.constraint = c.data();
+      if (sys.Evaluate(in, out) == 0)
+        for (int e = 0; e < nc; ++e)
+          if (std::abs(c[e]) > 1e-6 && sys.constraint_joint()[e] >= 0) violated.push_back(e);
+    }
+    violated.insert(violated.end(), r.report.violated.begin(), r.report.violated.end());
+    auto joints = OwnersOf(sys, violated);
     if (!joints.empty()) msg += ": the equations of " + Join(joints) + " cannot be satisfied";
     if (!r.report.message.empty()) msg += " (" + r.report.message + ")";
     throw InputError(msg);
