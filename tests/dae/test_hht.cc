@@ -400,3 +400,54 @@ TEST(Hht, InvalidOptionsAreRejected) {
 
 }  // namespace
 }  // namespace mbdae::dae
+
+namespace mbdae::dae {
+namespace {
+
+// General tumbling motion (reference: the same scheme at a 16 times smaller step than
+// the finest one compared).
+std::vector<double> Tumble(double h, bool modified, double alpha) {
+  FreeBodySystem sys(1.5, {1.0, 1.5, 2.0}, {0, 0, 0}, {0.3, -0.2, 0.5});
+  HhtOptions opt;
+  opt.alpha = alpha;
+  opt.step = h;
+  opt.modified = modified;
+  opt.newton_tolerance = 1e-11;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  std::vector<double> v(7, 0.0);
+  const double w[3] = {1.0, 0.5, -0.7};
+  const std::vector<double> q = {0, 0, 0, 1, 0, 0, 0};
+  FreeBodySystem::Gt(&q[3], w, &v[3]);
+  for (int k = 3; k < 7; ++k) v[k] *= 0.5;
+  integ->Initialize(ConsistentState(sys, q, v));
+  EXPECT_TRUE(integ->AdvanceTo(1.0)) << integ->summary().BriefReport();
+  return integ->state().q;
+}
+
+TEST(HhtModified, TumblingBodyConvergenceOrder) {
+  for (bool modified : {true, false}) {
+    for (double alpha : {0.0, -0.3}) {
+      const std::vector<double> ref = Tumble(0.02 / 128, modified, alpha);
+      double prev = 0;
+      for (int k = 0; k < 4; ++k) {
+        const std::vector<double> q = Tumble(0.02 / (1 << k), modified, alpha);
+        double err = 0;
+        for (int i = 3; i < 7; ++i) err = std::max(err, std::abs(q[i] - ref[i]));
+        // alpha = 0: second order. alpha < 0: with the configuration-dependent mass matrix
+        // of Euler parameters we measure first order (ratio 2.05-2.08) for BOTH the
+        // classical and the modified scheme (the pendulum, constant M, is second order);
+        // see docs/hht.md. The bound below records that measurement.
+        if (k > 0 && alpha == 0.0)
+          EXPECT_NEAR(prev / err, 4.0, 0.5)
+              << (modified ? "modified" : "classical") << " alpha " << alpha << " k " << k;
+        if (k > 0 && alpha < 0.0)
+          EXPECT_NEAR(prev / err, 2.0, 0.3)
+              << (modified ? "modified" : "classical") << " alpha " << alpha << " k " << k;
+        prev = err;
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace mbdae::dae
