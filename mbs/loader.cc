@@ -119,8 +119,8 @@ class Loader {
     CheckKeys(root, "model",
               {"format", "name", "gravity", "parameters", "splines", "ground", "bodies", "measures",
                "joints", "forces", "simulation"});
-    if (const YAML::Node splines = root["splines"]) {
-      Fail(splines, "model", "'splines' is not supported yet (splines come with a later release)");
+    if (root["splines"]) {
+      Fail(KeyNode(root, "splines"), "model", "'splines' is not supported yet (splines come with a later release)");
     }
     if (const YAML::Node name = root["name"]) model_.name = String(name, "model", "name");
 
@@ -184,6 +184,14 @@ class Loader {
       }
       if (!seen.insert(k).second) Fail(key, element, "key '" + k + "' is given twice");
     }
+  }
+
+  // The key node of `key` in `map` (for messages that point at the key).
+  static YAML::Node KeyNode(const YAML::Node& map, const std::string& key) {
+    for (auto it = map.begin(); it != map.end(); ++it) {
+      if (it->first.IsScalar() && it->first.Scalar() == key) return it->first;
+    }
+    return map;
   }
 
   YAML::Node Required(const YAML::Node& map, const std::string& element, const char* key) const {
@@ -325,7 +333,7 @@ class Loader {
       Fail(node, element, "'" + key + "': marker '" + name + "' must be written BODY.MARKER (e.g. ground.O, " +
                               (model_.bodies.empty() ? std::string("crank") : model_.bodies[0].name) + ".cm)");
     }
-    const std::string body = name.substr(0, dot), marker = name.substr(dot + 1);
+    const std::string body = name.substr(0, dot);
     std::vector<std::string> bodies{"ground"};
     for (const Body& b : model_.bodies) bodies.push_back(b.name);
     const int b = body == "ground" ? -1 : model_.find_body(body);
@@ -333,11 +341,13 @@ class Loader {
       Fail(node, element, "'" + key + "': unknown body '" + body + "' in marker '" + name + "'" + Suggest(body, bodies) +
                               " (bodies: " + Join(bodies) + ")");
     }
-    std::vector<std::string> markers;
+    std::vector<std::string> markers, full_names;
     for (const mbs::Marker& m : model_.markers) {
-      if (m.body == b) markers.push_back(m.name.substr(m.name.find('.') + 1));
+      if (m.body != b) continue;
+      full_names.push_back(m.name);
+      markers.push_back(m.name.substr(m.name.find('.') + 1));
     }
-    Fail(node, element, "'" + key + "': unknown marker '" + name + "'" + Suggest(marker, markers) + " (markers of " +
+    Fail(node, element, "'" + key + "': unknown marker '" + name + "'" + Suggest(name, full_names) + " (markers of " +
                             body + ": " + Join(markers) + ")");
   }
 

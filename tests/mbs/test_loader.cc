@@ -282,7 +282,7 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 2\n"), "m.yaml:1:9: model: unsupported format 2"));
   EXPECT_TRUE(Contains(LoadError("- 1\n- 2\n"), "the top level must be a mapping"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nformat: 1\n"), "m.yaml:2:1: model: key 'format' is given twice"));
-  EXPECT_TRUE(Contains(LoadError("format: 1\nsplines: {}\n"), "m.yaml:2:10: model: 'splines' is not supported yet"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nsplines: {}\n"), "m.yaml:2:1: model: 'splines' is not supported yet"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies:\n  - {name: b, geometry: {shape: mesh, file: a.stl}}\n"),
                        "body 'b': geometry shape 'mesh' is not supported yet"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: bushing, i: b.cm}\n"),
@@ -367,6 +367,11 @@ TEST(Loader, MalformedFiles) {
     }
   }
   EXPECT_GE(count, 12);
+  // Without the mistake the model loads: each file fails for its own reason only.
+  const Model base = LoadModel(dir + "correct_base.yaml");
+  EXPECT_EQ(base.bodies.size(), 2u);
+  EXPECT_EQ(base.joints.size(), 2u);
+  EXPECT_DOUBLE_EQ(base.markers[base.find_marker("crank.A")].position.y(), 0.05);
 }
 
 }  // namespace
