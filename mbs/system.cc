@@ -1,1 +1,897 @@
+// The multibody model as a mechanical DAE (see system.h).
+//
+// Formulation (Nikravesh, Computer-Aided Analysis of Mechanical Systems, 1988, ch. 6
+// and 11): per body q = (r, e), M = blockdiag(m I, 4 G^T J G),
+//   Q_r = m g + sum F,   Q_e = 8 G(e')^T J G(e') e + sum 2 G^T (s x A^T F) + 2 G^T A^T T.
+// The quadratic velocity term follows from Lagrange's equations with
+// T = 2 e'^T G^T J G e' (G e' = -G(e') e, G(e') e' = 0).
+//
+// Derivatives. Every body-fixed vector u gives the world vector A(e) u, whose components
+// are quadratic forms in e: A(e) u = 1/2 B(e, u) e with B(e, u) = d(A(e) u)/de, which is
+// linear in e, so d(B(e, u) x)/de = B(x, u) and the Hessian of w . A(e) u is the
+// constant 4x4 matrix with columns B(unit_m, u)^T w. G(e) is linear in e:
+// G(e) x = -G(x) e. Every joint equation is a dot product of two such vector fields,
+// so its gradient and Hessian are exact; the matrices the integrators need follow:
+//   C_q = grad c^T,  d(C_q v)/dq = (H v)^T,  gamma = -v^T H v,  d(C_q^T w)/dq = w H.
+//
+// Sparsity. Each matrix is written through a Sink: at construction the evaluation runs
+// once in recording mode and every (row, col) it adds is collected; the pattern is their
+// union and each add gets its position in the value array. Later evaluations replay the
+// same adds in the same order (the sequence depends only on the model, never on values),
+// so nothing is searched or allocated while evaluating.
 #include "mbs/system.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "mbs/kinematics.h"
+
+namespace mbdae::mbs {
+namespace {
+
+using Mat4 = Eigen::Matrix4d;
+using Vec14 = Eigen::Matrix<double, 14, 1>;
+using Mat3x14 = Eigen::Matrix<double, 3, 14>;
+using Mat14 = Eigen::Matrix<double, 14, 14>;
+using Mat43 = Eigen::Matrix<double, 4, 3>;
+
+// B(e, u) = d(A(e) u)/de = 2 [e0 u + e_v x u, (e_v.u) I + e_v u^T - u e_v^T - e0 skew(u)];
+// B(e, u) e = 2 A(e) u.
+Mat34 BMatrix(const Quat& e, const Vec3& u) {
+  const Vec3 ev = e.tail<3>();
+  Mat34 b;
+  b.col(0) = 2 * (e[0] * u + ev.cross(u));
+  b.rightCols<3>() =
+      2 * (ev.dot(u) * Mat3::Identity() + ev * u.transpose() - u * ev.transpose() - e[0] * Skew(u));
+  return b;
+}
+
+// Hessian of w . (A(e) u) with respect to e (constant, symmetric).
+Mat4 HessianDot(const Vec3& u, const Vec3& w) {
+  Mat4 h;
+  for (int m = 0; m < 4; ++m) h.col(m) = BMatrix(Quat::Unit(m), u).transpose() * w;
+  return h;
+}
+
+// d(G(e)^T y)/de for fixed y: G^T y = (-e_v.y, e_v x y + e0 y).
+Mat4 GtJacobian(const Vec3& y) {
+  Mat4 m;
+  m(0, 0) = 0;
+  m.block<1, 3>(0, 1) = -y.transpose();
+  m.block<3, 1>(1, 0) = y;
+  m.block<3, 3>(1, 1) = -Skew(y);
+  return m;
+}
+
+// d(A(e)^T F)/de: A(e)^T = A(conj(e)), conj(e) = (e0, -e_v).
+Mat34 BTransposeMatrix(const Quat& e, const Vec3& f) {
+  const Quat c(e[0], -e[1], -e[2], -e[3]);
+  Mat34 b = BMatrix(c, f);
+  b.rightCols<3>() *= -1;
+  return b;
+}
+
+// The coordinates of (up to) two bodies, slot 0 and slot 1, and their rates.
+struct Local {
+  int offset[2] = {-1, -1};  // 7 * body, -1 for ground
+  Vec3 r[2], rd[2], rdd[2];
+  Quat e[2], ed[2], edd[2];
+  Vec14 v, a;  // rates of the 14 local coordinates (zero for ground slots)
+};
+
+// One body-fixed vector (or point, if `point`: r + A u) of slot `slot`, times `sign`;
+// slot -1: a constant world vector u.
+struct Term {
+  int slot = -1;
+  Vec3 u = Vec3::Zero();
+  bool point = false;
+  double sign = 1;
+};
+
+// A world vector field: the sum of one or two terms.
+struct Field {
+  Term t[2];
+  int n = 0;
+
+  Vec3 Value(const Local& l) const {
+    Vec3 x = Vec3::Zero();
+    for (int k = 0; k < n; ++k) {
+      const Term& t = this->t[k];
+      if (t.slot < 0) {
+        x += t.sign * t.u;
+      } else {
+        x += t.sign * RotationMatrix(l.e[t.slot]) * t.u;
+        if (t.point) x += t.sign * l.r[t.slot];
+      }
+    }
+    return x;
+  }
+  // d x / dq_local
+  Mat3x14 Jacobian(const Local& l) const {
+    Mat3x14 j = Mat3x14::Zero();
+    for (int k = 0; k < n; ++k) {
+      const Term& t = this->t[k];
+      if (t.slot < 0) continue;
+      if (t.point) j.block<3, 3>(0, 7 * t.slot) += t.sign * Mat3::Identity();
+      j.block<3, 4>(0, 7 * t.slot + 3) += t.sign * BMatrix(l.e[t.slot], t.u);
+    }
+    return j;
+  }
+  // d(J v)/dq_local
+  Mat3x14 JacobianDot(const Local& l) const {
+    Mat3x14 j = Mat3x14::Zero();
+    for (int k = 0; k < n; ++k) {
+      const Term& t = this->t[k];
+      if (t.slot < 0) continue;
+      j.block<3, 4>(0, 7 * t.slot + 3) += t.sign * BMatrix(l.ed[t.slot], t.u);
+    }
+    return j;
+  }
+  // h += Hessian of (w . x) at fixed w
+  void AddHessianDot(const Vec3& w, Mat14& h) const {
+    for (int k = 0; k < n; ++k) {
+      const Term& t = this->t[k];
+      if (t.slot < 0) continue;
+      h.block<4, 4>(7 * t.slot + 3, 7 * t.slot + 3) += t.sign * HessianDot(t.u, w);
+    }
+  }
+  // First and second time derivatives.
+  void Rates(const Local& l, Vec3* xd, Vec3* xdd) const {
+    const Mat3x14 j = Jacobian(l);
+    *xd = j * l.v;
+    *xdd = j * l.a + JacobianDot(l) * l.v;
+  }
+};
+
+// Records (row, col) of every add at construction, then replays the adds into the
+// values in the recorded order.
+class Sink {
+ public:
+  void StartRecording() { recording_ = true; entries_.clear(); }
+  void Finish(int rows, int cols) {
+    pattern_ = dae::CscPattern::FromEntries(rows, cols, entries_);
+    position_.resize(entries_.size());
+    for (size_t k = 0; k < entries_.size(); ++k)
+      position_[k] = pattern_.find(entries_[k].first, entries_[k].second);
+    entries_.clear();
+    entries_.shrink_to_fit();
+    recording_ = false;
+  }
+  void Begin(double* values) {
+    values_ = values;
+    cursor_ = 0;
+    if (values_ && !recording_) std::fill(values_, values_ + pattern_.nnz(), 0.0);
+  }
+  bool active() const { return values_ != nullptr || recording_; }
+  void Add(int r, int c, double v) {
+    if (recording_) {
+      entries_.push_back({r, c});
+    } else {
+      assert(cursor_ < static_cast<int>(position_.size()));
+      values_[position_[cursor_++]] += v;
+    }
+  }
+  void End() {
+    assert(recording_ || !values_ || cursor_ == static_cast<int>(position_.size()));
+    values_ = nullptr;
+  }
+  const dae::CscPattern& pattern() const { return pattern_; }
+
+ private:
+  bool recording_ = false;
+  std::vector<std::pair<int, int>> entries_;
+  std::vector<int> position_;
+  dae::CscPattern pattern_;
+  double* values_ = nullptr;
+  int cursor_ = 0;
+};
+
+// Which entries of a local 14x14 (or 14-vector) block are structurally present.
+enum class Part { kAll, kRotation /* the Euler parameter coordinates */ };
+inline bool InPart(Part p, int local) { return p == Part::kAll || local % 7 >= 3; }
+
+const char* kLockNames[6] = {"x", "y", "z", "rx", "ry", "rz"};
+
+}  // namespace
+
+struct MultibodySystem::Impl {
+  const Model& model;
+  std::vector<double> params;
+  int nq = 0, nc = 0;
+  std::vector<int> quaternion_offsets;
+  std::vector<std::string> coordinate_names, constraint_names;
+  std::vector<int> constraint_joint;
+  // Per joint: its equations (lock index 0..5) and the first constraint row.
+  std::vector<std::vector<int>> joint_locks;
+  std::vector<int> joint_row;
+  // Cached force-element constants, evaluated at the start of Evaluate.
+  struct ForceValues {
+    double k = 0, c = 0, l0 = 0, preload = 0;
+    Vec3 value = Vec3::Zero();
+  };
+  std::vector<ForceValues> force_values;
+  Sink sink[dae::kNumMatrices];
+  std::vector<double> zeros;  // nq + nc zeros for absent inputs
+  std::string error;
+
+  Impl(const Model& m, std::vector<double> p) : model(m), params(std::move(p)) {}
+
+  int BodyOf(int marker) const { return model.markers[marker].body; }
+
+  // Local coordinates of the bodies of markers i (slot 0) and j (slot 1).
+  void Gather(int body0, int body1, const double* q, const double* v, const double* a,
+              Local& l) const {
+    const int body[2] = {body0, body1};
+    l.v.setZero();
+    l.a.setZero();
+    for (int s = 0; s < 2; ++s) {
+      if (body[s] < 0) {
+        l.offset[s] = -1;
+        l.r[s].setZero(); l.rd[s].setZero(); l.rdd[s].setZero();
+        l.e[s] = Quat(1, 0, 0, 0); l.ed[s].setZero(); l.edd[s].setZero();
+        continue;
+      }
+      const int o = Model::coordinate_offset(body[s]);
+      l.offset[s] = o;
+      l.r[s] = Eigen::Map<const Vec3>(q + o);
+      l.e[s] = Eigen::Map<const Quat>(q + o + 3);
+      l.rd[s] = Eigen::Map<const Vec3>(v + o);
+      l.ed[s] = Eigen::Map<const Quat>(v + o + 3);
+      l.rdd[s] = Eigen::Map<const Vec3>(a + o);
+      l.edd[s] = Eigen::Map<const Quat>(a + o + 3);
+      l.v.segment<7>(7 * s) = Eigen::Map<const Eigen::Matrix<double, 7, 1>>(v + o);
+      l.a.segment<7>(7 * s) = Eigen::Map<const Eigen::Matrix<double, 7, 1>>(a + o);
+    }
+  }
+
+  // Marker position (point) or marker axis k (0..2) as a field of slot `slot`.
+  Term MarkerPoint(int marker, int slot, double sign) const {
+    const Marker& mk = model.markers[marker];
+    Term t;
+    t.slot = mk.body < 0 ? -1 : slot;
+    t.u = mk.position;
+    t.point = true;
+    t.sign = sign;
+    return t;
+  }
+  Term MarkerAxis(int marker, int slot, int axis) const {
+    const Marker& mk = model.markers[marker];
+    Term t;
+    t.slot = mk.body < 0 ? -1 : slot;
+    t.u = mk.orientation.col(axis);
+    return t;
+  }
+  static Field One(const Term& a) { Field f; f.t[0] = a; f.n = 1; return f; }
+  Field Separation(int mi, int mj) const {  // d = x_i - x_j
+    Field f;
+    f.t[0] = MarkerPoint(mi, 0, 1.0);
+    f.t[1] = MarkerPoint(mj, 1, -1.0);
+    f.n = 2;
+    return f;
+  }
+
+  // The two factors of joint equation `lock` (c = u . w).
+  void JointFactors(const Joint& jt, int lock, Field& u, Field& w) const {
+    switch (lock) {
+      case 0: case 1: case 2:
+        u = One(MarkerAxis(jt.j, 1, lock));
+        w = Separation(jt.i, jt.j);
+        return;
+      case 3: u = One(MarkerAxis(jt.j, 1, 1)); w = One(MarkerAxis(jt.i, 0, 2)); return;
+      case 4: u = One(MarkerAxis(jt.j, 1, 0)); w = One(MarkerAxis(jt.i, 0, 2)); return;
+      default: u = One(MarkerAxis(jt.j, 1, 0)); w = One(MarkerAxis(jt.i, 0, 1)); return;
+    }
+  }
+
+  // c = u . w, its gradient and (if hess) Hessian in the local coordinates.
+  static void DotEquation(const Field& u, const Field& w, const Local& l, bool hess, double* c,
+                          Vec14* grad, Mat14* h) {
+    const Vec3 uv = u.Value(l), wv = w.Value(l);
+    const Mat3x14 ju = u.Jacobian(l), jw = w.Jacobian(l);
+    *c = uv.dot(wv);
+    *grad = ju.transpose() * wv + jw.transpose() * uv;
+    if (hess) {
+      h->noalias() = ju.transpose() * jw;
+      *h += h->transpose().eval();
+      u.AddHessianDot(wv, *h);
+      w.AddHessianDot(uv, *h);
+    }
+  }
+
+  ForceValues ComputeForceValues(int k) const {
+    const double* p = params.data();
+    const Force& f = model.forces[k];
+    ForceValues fv;
+    if (f.type == ForceType::kSpringDamper) {
+      fv.k = f.stiffness.Evaluate(p);
+      fv.c = f.damping.Evaluate(p);
+      fv.l0 = f.free_length.Evaluate(p);
+      fv.preload = f.preload.Evaluate(p);
+    } else {
+      for (int c = 0; c < 3; ++c) fv.value[c] = f.value[c].Evaluate(p);
+    }
+    return fv;
+  }
+  void EvaluateForceValues() {
+    for (size_t k = 0; k < model.forces.size(); ++k)
+      force_values[k] = ComputeForceValues(static_cast<int>(k));
+  }
+
+  // The force (or torque) vector of element k on marker i, world axes, and its
+  // derivatives with respect to the local coordinates and rates. Returns false if a
+  // spring has zero length (the values are then finite but meaningless).
+  bool ForceVector(int k, const ForceValues& fv, const Local& l, Vec3* f, Mat3x14* dfdq,
+                   Mat3x14* dfdv) const {
+    const Force& fe = model.forces[k];
+    dfdq->setZero();
+    dfdv->setZero();
+    if (fe.type == ForceType::kSpringDamper) {
+      const Field d = Separation(fe.i, fe.j);
+      const Vec3 dv = d.Value(l);
+      const Mat3x14 jd = d.Jacobian(l);
+      const Vec3 ddot = jd * l.v;
+      double len = dv.norm();
+      bool ok = len > 1e-12;
+      if (!ok) len = 1;
+      const Vec3 n = dv / len;
+      const double ld = n.dot(ddot);
+      const double s = -fv.k * (len - fv.l0) - fv.c * ld + fv.preload;
+      *f = s * n;
+      const Mat3 dn = (Mat3::Identity() - n * n.transpose()) / len;  // dn/dd
+      const Eigen::Matrix<double, 1, 14> dl = n.transpose() * jd;
+      const Eigen::Matrix<double, 1, 14> dld =
+          ddot.transpose() * dn * jd + n.transpose() * d.JacobianDot(l);
+      const Eigen::Matrix<double, 1, 14> ds = -fv.k * dl - fv.c * dld;
+      *dfdq = n * ds + s * dn * jd;
+      *dfdv = -fv.c * n * dl;
+      return ok;
+    }
+    // force / torque: constant components in the frame's axes
+    if (fe.frame == ForceFrame::kWorld) {
+      *f = fv.value;
+      return true;
+    }
+    const int marker = fe.frame == ForceFrame::kI ? fe.i : fe.j;
+    const int slot = fe.frame == ForceFrame::kI ? 0 : 1;
+    Term t = MarkerAxis(marker, slot, 0);
+    t.u = model.markers[marker].orientation * fv.value;
+    const Field u = One(t);
+    *f = u.Value(l);
+    *dfdq = u.Jacobian(l);
+    return true;
+  }
+
+  // Structural dependencies of element k's vector on q and v.
+  bool ForceDependsOnQ(int k) const {
+    const Force& fe = model.forces[k];
+    if (fe.type == ForceType::kSpringDamper) return true;
+    if (fe.frame == ForceFrame::kWorld) return false;
+    const int marker = fe.frame == ForceFrame::kI ? fe.i : fe.j;
+    return BodyOf(marker) >= 0;
+  }
+  bool ForceDependsOnV(int k) const {
+    return model.forces[k].type == ForceType::kSpringDamper;
+  }
+
+  // Adds a local 14x14 matrix to a sink, entries (r, c) with InPart(rows, r) and
+  // InPart(cols, c) and both slots on bodies.
+  static void AddLocal(Sink& s, const Local& l, const Mat14& m, Part rows, Part cols) {
+    for (int c = 0; c < 14; ++c) {
+      const int oc = l.offset[c / 7];
+      if (oc < 0 || !InPart(cols, c)) continue;
+      for (int r = 0; r < 14; ++r) {
+        const int orow = l.offset[r / 7];
+        if (orow < 0 || !InPart(rows, r)) continue;
+        s.Add(orow + r % 7, oc + c % 7, m(r, c));
+      }
+    }
+  }
+  static void AddLocalRow(Sink& s, int row, const Local& l, const Vec14& g) {
+    for (int c = 0; c < 14; ++c) {
+      const int oc = l.offset[c / 7];
+      if (oc < 0) continue;
+      s.Add(row, oc + c % 7, g[c]);
+    }
+  }
+
+  int Run(const dae::EvalInput& in, dae::EvalOutput& out);
+  void Setup();
+};
+
+void MultibodySystem::Impl::Setup() {
+  const int nb = static_cast<int>(model.bodies.size());
+  const int nm = static_cast<int>(model.markers.size());
+  nq = model.num_coordinates();
+  if (params.empty())
+    for (const Parameter& p : model.parameters) params.push_back(p.value);
+  if (params.size() != model.parameters.size()) {
+    std::ostringstream msg;
+    msg << "MultibodySystem: " << params.size() << " parameter values given, the model has "
+        << model.parameters.size();
+    throw std::invalid_argument(msg.str());
+  }
+  auto check_marker = [&](int m, const std::string& what) {
+    if (m < 0 || m >= nm) {
+      std::ostringstream msg;
+      msg << what << ": marker index " << m << " out of range (" << nm << " markers)";
+      throw std::invalid_argument(msg.str());
+    }
+  };
+  for (const Marker& mk : model.markers)
+    if (mk.body < -1 || mk.body >= nb)
+      throw std::invalid_argument("marker '" + mk.name + "': body index out of range");
+  static const char* kCoord[7] = {"x", "y", "z", "e0", "e1", "e2", "e3"};
+  for (int b = 0; b < nb; ++b) {
+    quaternion_offsets.push_back(7 * b + 3);
+    for (int k = 0; k < 7; ++k) coordinate_names.push_back(model.bodies[b].name + "." + kCoord[k]);
+  }
+  for (size_t k = 0; k < model.joints.size(); ++k) {
+    const Joint& jt = model.joints[k];
+    check_marker(jt.i, "joint '" + jt.name + "'");
+    check_marker(jt.j, "joint '" + jt.name + "'");
+    if (BodyOf(jt.i) < 0 && BodyOf(jt.j) < 0)
+      throw std::invalid_argument("joint '" + jt.name + "': both markers are on ground");
+    joint_row.push_back(nc);
+    joint_locks.emplace_back();
+    for (int b = 0; b < 6; ++b) {
+      if (!(jt.locks & (1u << b))) continue;
+      joint_locks.back().push_back(b);
+      constraint_names.push_back(jt.name + "." + kLockNames[b]);
+      constraint_joint.push_back(static_cast<int>(k));
+      ++nc;
+    }
+  }
+  for (int b = 0; b < nb; ++b) {
+    constraint_names.push_back(model.bodies[b].name + ".euler_norm");
+    constraint_joint.push_back(-1);
+    ++nc;
+  }
+  for (const Force& f : model.forces) {
+    check_marker(f.i, "force '" + f.name + "'");
+    check_marker(f.j, "force '" + f.name + "'");
+  }
+  for (const Measure& m : model.measures) {
+    check_marker(m.i, "measure '" + m.name + "'");
+    check_marker(m.j, "measure '" + m.name + "'");
+  }
+  force_values.resize(model.forces.size());
+  zeros.assign(nq + nc + 1, 0.0);
+
+  // Record the patterns with a generic state.
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> q(nq), v(nq), a(nq), w(nc + 1);
+  for (int b = 0; b < nb; ++b) {
+    for (int k = 0; k < 3; ++k) q[7 * b + k] = 10 * u(rng);
+    Quat e(u(rng), u(rng), u(rng), u(rng));
+    e.normalize();
+    for (int k = 0; k < 4; ++k) q[7 * b + 3 + k] = e[k];
+  }
+  for (auto& x : v) x = u(rng);
+  for (auto& x : a) x = u(rng);
+  for (auto& x : w) x = u(rng);
+  for (Sink& s : sink) s.StartRecording();
+  dae::EvalInput ein;
+  ein.q = q.data(); ein.v = v.data(); ein.a = a.data(); ein.w = w.data();
+  dae::EvalOutput eout;
+  std::vector<double> f(nq), c(nc + 1), ct(nc + 1), g(nc + 1);
+  eout.force = f.data(); eout.constraint = c.data(); eout.constraint_dt = ct.data();
+  eout.acc_rhs = g.data();
+  Run(ein, eout);
+  for (int m = 0; m < dae::kNumMatrices; ++m) {
+    const auto mm = static_cast<dae::Matrix>(m);
+    const bool qrows = mm == dae::Matrix::kConstraintDq || mm == dae::Matrix::kConstraintVelDq;
+    sink[m].Finish(qrows ? nc : nq, nq);
+  }
+}
+
+int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
+  using dae::Matrix;
+  const double* q = in.q;
+  assert(q != nullptr);
+  const double* v = in.v ? in.v : zeros.data();
+  const double* a = in.a ? in.a : zeros.data();
+  const double* w = in.w ? in.w : zeros.data();
+  const int nb = static_cast<int>(model.bodies.size());
+  Sink& sM = sink[static_cast<int>(Matrix::kMass)];
+  Sink& sMa = sink[static_cast<int>(Matrix::kMassTimesAccDq)];
+  Sink& sKq = sink[static_cast<int>(Matrix::kForceDq)];
+  Sink& sKv = sink[static_cast<int>(Matrix::kForceDv)];
+  Sink& sCq = sink[static_cast<int>(Matrix::kConstraintDq)];
+  Sink& sCtw = sink[static_cast<int>(Matrix::kConstraintTDq)];
+  Sink& sCv = sink[static_cast<int>(Matrix::kConstraintVelDq)];
+  for (int m = 0; m < dae::kNumMatrices; ++m) sink[m].Begin(out.matrix[m]);
+  if (out.force) std::fill(out.force, out.force + nq, 0.0);
+  if (out.constraint) std::fill(out.constraint, out.constraint + nc, 0.0);
+  if (out.constraint_dt) std::fill(out.constraint_dt, out.constraint_dt + nc, 0.0);
+  if (out.acc_rhs) std::fill(out.acc_rhs, out.acc_rhs + nc, 0.0);
+  EvaluateForceValues();
+  bool spring_ok = true;
+  int bad_spring = -1;
+
+  // Bodies: mass matrix, gravity, quadratic velocity terms.
+  for (int b = 0; b < nb; ++b) {
+    const Body& body = model.bodies[b];
+    const int o = Model::coordinate_offset(b);
+    const Quat e = Eigen::Map<const Quat>(q + o + 3);
+    const Quat ed = Eigen::Map<const Quat>(v + o + 3);
+    const Mat34 G = GMatrix(e), Gd = GMatrix(ed);
+    const Mat3& J = body.inertia;
+    if (sM.active()) {
+      for (int k = 0; k < 3; ++k) sM.Add(o + k, o + k, body.mass);
+      const Mat4 Me = 4 * G.transpose() * J * G;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) sM.Add(o + 3 + r, o + 3 + c, Me(r, c));
+    }
+    if (sMa.active()) {
+      // d(4 G^T J G a_e)/de = 4 dG^T/de (J G a_e) + 4 G^T J d(G a_e)/de
+      const Quat ae = Eigen::Map<const Quat>(a + o + 3);
+      const Mat4 K = 4 * GtJacobian(J * G * ae) - 4 * G.transpose() * J * GMatrix(ae);
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) sMa.Add(o + 3 + r, o + 3 + c, K(r, c));
+    }
+    const Vec3 ge = Gd * e;  // = -G e' = -omega'/2
+    if (out.force) {
+      Eigen::Map<Vec3>(out.force + o) += body.mass * model.gravity;
+      Eigen::Map<Quat>(out.force + o + 3) += 8 * Gd.transpose() * J * ge;
+    }
+    if (sKq.active()) {
+      const Mat4 K = 8 * Gd.transpose() * J * Gd;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) sKq.Add(o + 3 + r, o + 3 + c, K(r, c));
+    }
+    if (sKv.active()) {
+      // d(8 G(e')^T J G(e') e)/de' with G(e') e = -G(e) e'
+      const Mat4 K = 8 * GtJacobian(J * ge) - 8 * Gd.transpose() * J * G;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) sKv.Add(o + 3 + r, o + 3 + c, K(r, c));
+    }
+  }
+
+  // Joints.
+  const bool need_hess = sCtw.active() || sCv.active() || out.acc_rhs;
+  Local l;
+  for (size_t k = 0; k < model.joints.size(); ++k) {
+    const Joint& jt = model.joints[k];
+    Gather(BodyOf(jt.i), BodyOf(jt.j), q, v, a, l);
+    int row = joint_row[k];
+    for (int lock : joint_locks[k]) {
+      Field fu, fw;
+      JointFactors(jt, lock, fu, fw);
+      double c;
+      Vec14 grad;
+      Mat14 h;
+      DotEquation(fu, fw, l, need_hess, &c, &grad, &h);
+      if (out.constraint) out.constraint[row] = c;
+      if (sCq.active()) AddLocalRow(sCq, row, l, grad);
+      if (need_hess) {
+        const Vec14 hv = h * l.v;
+        if (sCv.active()) AddLocalRow(sCv, row, l, hv);
+        if (out.acc_rhs) out.acc_rhs[row] = -l.v.dot(hv);
+        if (sCtw.active()) {
+          // translational equations are linear in r: no r-r entries
+          const Mat14 hw = w[row] * h;
+          if (lock < 3) {
+            for (int c2 = 0; c2 < 14; ++c2) {
+              const int oc = l.offset[c2 / 7];
+              if (oc < 0) continue;
+              for (int r2 = 0; r2 < 14; ++r2) {
+                const int orow = l.offset[r2 / 7];
+                if (orow < 0 || (r2 % 7 < 3 && c2 % 7 < 3)) continue;
+                sCtw.Add(orow + r2 % 7, oc + c2 % 7, hw(r2, c2));
+              }
+            }
+          } else {
+            AddLocal(sCtw, l, hw, Part::kRotation, Part::kRotation);
+          }
+        }
+      }
+      ++row;
+    }
+  }
+  // Normalisation of the Euler parameters: e^T e - 1 = 0.
+  for (int b = 0; b < nb; ++b) {
+    const int row = nc - nb + b;
+    const int o = Model::coordinate_offset(b) + 3;
+    const Quat e = Eigen::Map<const Quat>(q + o);
+    const Quat ed = Eigen::Map<const Quat>(v + o);
+    if (out.constraint) out.constraint[row] = e.squaredNorm() - 1;
+    if (out.acc_rhs) out.acc_rhs[row] = -2 * ed.squaredNorm();
+    for (int k = 0; k < 4; ++k) {
+      if (sCq.active()) sCq.Add(row, o + k, 2 * e[k]);
+      if (sCv.active()) sCv.Add(row, o + k, 2 * ed[k]);
+      if (sCtw.active()) sCtw.Add(o + k, o + k, 2 * w[row]);
+    }
+  }
+
+  // Force elements.
+  for (size_t k = 0; k < model.forces.size(); ++k) {
+    const Force& fe = model.forces[k];
+    Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
+    Vec3 f;
+    Mat3x14 dfdq, dfdv;
+    if (!ForceVector(static_cast<int>(k), force_values[k], l, &f, &dfdq, &dfdv) && spring_ok) {
+      spring_ok = false;
+      bad_spring = static_cast<int>(k);
+    }
+    const bool depq = ForceDependsOnQ(static_cast<int>(k));
+    const bool depv = ForceDependsOnV(static_cast<int>(k));
+    const bool torque = fe.type == ForceType::kTorque;
+    Vec14 gq = Vec14::Zero();
+    Mat14 kq = Mat14::Zero(), kv = Mat14::Zero();
+    for (int s = 0; s < 2; ++s) {
+      if (l.offset[s] < 0) continue;
+      const double sign = s == 0 ? 1.0 : -1.0;
+      const Vec3 fs = sign * f;
+      const Quat& e = l.e[s];
+      const Mat34 G = GMatrix(e);
+      const Mat3 A = RotationMatrix(e);
+      Mat43 P;       // dQ_e/dF
+      Mat4 Kown;     // dQ_e/de_s at fixed F
+      if (torque) {
+        P = 2 * G.transpose() * A.transpose();
+        Kown = 2 * GtJacobian(A.transpose() * fs) + 2 * G.transpose() * BTransposeMatrix(e, fs);
+      } else {
+        const Vec3 sp = model.markers[s == 0 ? fe.i : fe.j].position;
+        const Mat3 S = Skew(sp);
+        P = 2 * G.transpose() * S * A.transpose();
+        gq.segment<3>(7 * s) += fs;
+        Kown = 2 * GtJacobian(S * A.transpose() * fs) +
+               2 * G.transpose() * S * BTransposeMatrix(e, fs);
+      }
+      gq.segment<4>(7 * s + 3) += P * fs;
+      kq.block<4, 4>(7 * s + 3, 7 * s + 3) += Kown;
+      if (!torque) {
+        kq.block<3, 14>(7 * s, 0) += sign * dfdq;
+        kv.block<3, 14>(7 * s, 0) += sign * dfdv;
+      }
+      kq.block<4, 14>(7 * s + 3, 0) += sign * P * dfdq;
+      kv.block<4, 14>(7 * s + 3, 0) += sign * P * dfdv;
+    }
+    if (out.force)
+      for (int r = 0; r < 14; ++r)
+        if (l.offset[r / 7] >= 0) out.force[l.offset[r / 7] + r % 7] += gq[r];
+    if (sKq.active()) {
+      if (depq) AddLocal(sKq, l, kq, torque ? Part::kRotation : Part::kAll, Part::kAll);
+      else AddLocal(sKq, l, kq, Part::kRotation, Part::kRotation);
+    }
+    if (sKv.active() && depv) AddLocal(sKv, l, kv, Part::kAll, Part::kAll);
+  }
+
+  for (Sink& s : sink) s.End();
+  if (!spring_ok) {
+    error = "spring_damper '" + model.forces[bad_spring].name + "': length zero";
+    return 1;
+  }
+  return 0;
+}
+
+// ---------------------------------------------------------------------------------
+
+MultibodySystem::MultibodySystem(const Model& model, std::vector<double> parameters)
+    : impl_(std::make_unique<Impl>(model, std::move(parameters))) {
+  impl_->Setup();
+}
+
+MultibodySystem::~MultibodySystem() = default;
+
+int MultibodySystem::num_coordinates() const { return impl_->nq; }
+int MultibodySystem::num_constraints() const { return impl_->nc; }
+const dae::CscPattern& MultibodySystem::pattern(dae::Matrix m) const {
+  return impl_->sink[static_cast<int>(m)].pattern();
+}
+const std::vector<int>& MultibodySystem::quaternion_offsets() const {
+  return impl_->quaternion_offsets;
+}
+int MultibodySystem::Evaluate(const dae::EvalInput& in, dae::EvalOutput& out) {
+  return impl_->Run(in, out);
+}
+const char* MultibodySystem::last_error() const { return impl_->error.c_str(); }
+const Model& MultibodySystem::model() const { return impl_->model; }
+const std::vector<std::string>& MultibodySystem::coordinate_names() const {
+  return impl_->coordinate_names;
+}
+const std::vector<std::string>& MultibodySystem::constraint_names() const {
+  return impl_->constraint_names;
+}
+const std::vector<int>& MultibodySystem::constraint_joint() const {
+  return impl_->constraint_joint;
+}
+std::vector<double>& MultibodySystem::parameters() { return impl_->params; }
+const std::vector<double>& MultibodySystem::parameters() const { return impl_->params; }
+
+void MultibodySystem::InitialState(std::vector<double>& q, std::vector<double>& v) const {
+  const Model& m = impl_->model;
+  q.assign(impl_->nq, 0.0);
+  v.assign(impl_->nq, 0.0);
+  for (size_t b = 0; b < m.bodies.size(); ++b) {
+    const Body& body = m.bodies[b];
+    const int o = Model::coordinate_offset(static_cast<int>(b));
+    Eigen::Map<Vec3>(q.data() + o) = body.position;
+    Eigen::Map<Quat>(q.data() + o + 3) = body.orientation;
+    Eigen::Map<Vec3>(v.data() + o) = body.velocity;
+    // omega = 2 E e'  and  E E^T = I, E e = 0  =>  e' = 1/2 E^T omega
+    Eigen::Map<Quat>(v.data() + o + 3) = 0.5 * EMatrix(body.orientation).transpose() *
+                                         body.angular_velocity;
+  }
+}
+
+// Translational measures: the component (x, y, z of marker j's axes, or of the world
+// axes) of d = x_i - x_j, or |d|; velocity and acceleration are the exact first and
+// second time derivatives of that scalar (with v = q', a = q'').
+// Rotational measures about axis k of marker j (k, p = k+1, n = k+2 cyclic): the angle
+// atan2(p_i . n_j, p_i . p_j) in (-pi, pi], where p_i is marker i's p-axis; velocity and
+// acceleration are its exact first and second time derivatives. When marker i's k-axis
+// stays parallel to marker j's (e.g. across a revolute joint) these equal the component
+// along j's k-axis of the relative angular velocity and acceleration.
+void MultibodySystem::EvaluateMeasures(double /*t*/, const double* q, const double* v,
+                                       const double* a, double* values) const {
+  const Impl& im = *impl_;
+  const double* vv = v ? v : im.zeros.data();
+  const double* aa = a ? a : im.zeros.data();
+  Local l;
+  for (size_t k = 0; k < im.model.measures.size(); ++k) {
+    const Measure& m = im.model.measures[k];
+    im.Gather(im.BodyOf(m.i), im.BodyOf(m.j), q, vv, aa, l);
+    double x = 0, xd = 0, xdd = 0;
+    if (m.type == MeasureType::kTranslational) {
+      const Field d = im.Separation(m.i, m.j);
+      const Vec3 dv = d.Value(l);
+      Vec3 dd, ddd;
+      d.Rates(l, &dd, &ddd);
+      if (m.component == Component::kDistance) {
+        x = dv.norm();
+        if (x > 0) {
+          xd = dv.dot(dd) / x;
+          xdd = (dd.dot(dd) + dv.dot(ddd) - xd * xd) / x;
+        }
+      } else {
+        const int axis = static_cast<int>(m.component);
+        Field u;
+        if (m.frame == MeasureFrame::kWorld) {
+          Term t;
+          t.u = Vec3::Unit(axis);
+          u = Impl::One(t);
+        } else {
+          u = Impl::One(im.MarkerAxis(m.j, 1, axis));
+        }
+        const Vec3 uv = u.Value(l);
+        Vec3 ud, udd;
+        u.Rates(l, &ud, &udd);
+        x = uv.dot(dv);
+        xd = ud.dot(dv) + uv.dot(dd);
+        xdd = udd.dot(dv) + 2 * ud.dot(dd) + uv.dot(ddd);
+      }
+    } else {
+      const int axis = std::min(static_cast<int>(m.component), 2);
+      const int p = (axis + 1) % 3, n = (axis + 2) % 3;
+      const Field pi = Impl::One(im.MarkerAxis(m.i, 0, p));
+      const Field pj = Impl::One(im.MarkerAxis(m.j, 1, p));
+      const Field nj = Impl::One(im.MarkerAxis(m.j, 1, n));
+      Vec3 piv = pi.Value(l), pjv = pj.Value(l), njv = nj.Value(l);
+      Vec3 pid, pidd, pjd, pjdd, njd, njdd;
+      pi.Rates(l, &pid, &pidd);
+      pj.Rates(l, &pjd, &pjdd);
+      nj.Rates(l, &njd, &njdd);
+      const double X = piv.dot(pjv), Y = piv.dot(njv);
+      const double Xd = pid.dot(pjv) + piv.dot(pjd), Yd = pid.dot(njv) + piv.dot(njd);
+      const double Xdd = pidd.dot(pjv) + 2 * pid.dot(pjd) + piv.dot(pjdd);
+      const double Ydd = pidd.dot(njv) + 2 * pid.dot(njd) + piv.dot(njdd);
+      x = std::atan2(Y, X);
+      if (x <= -M_PI) x = M_PI;
+      const double D = X * X + Y * Y;
+      if (D > 0) {
+        const double N = X * Yd - Y * Xd;
+        const double Nd = X * Ydd - Y * Xdd;
+        const double Dd = 2 * (X * Xd + Y * Yd);
+        xd = N / D;
+        xdd = (Nd * D - N * Dd) / (D * D);
+      }
+    }
+    values[k] = m.quantity == Quantity::kPosition   ? x
+                : m.quantity == Quantity::kVelocity ? xd
+                                                    : xdd;
+  }
+}
+
+void MultibodySystem::JointReaction(int joint, double /*t*/, const double* q,
+                                    const double* lambda, double* force, double* torque) const {
+  const Impl& im = *impl_;
+  const Joint& jt = im.model.joints.at(joint);
+  Local l;
+  im.Gather(im.BodyOf(jt.i), im.BodyOf(jt.j), q, im.zeros.data(), im.zeros.data(), l);
+  // Generalised reaction -C_q^T lambda on the local coordinates.
+  Vec14 g = Vec14::Zero();
+  int row = im.joint_row[joint];
+  for (int lock : im.joint_locks[joint]) {
+    Field fu, fw;
+    im.JointFactors(jt, lock, fu, fw);
+    double c;
+    Vec14 grad;
+    Impl::DotEquation(fu, fw, l, false, &c, &grad, nullptr);
+    g -= lambda[row] * grad;
+    ++row;
+  }
+  // Force and moment about the centre of mass (world) of the body in slot s.
+  auto wrench = [&](int s, Vec3* f, Vec3* n) {
+    *f = g.segment<3>(7 * s);
+    const Vec3 nb = 0.5 * GMatrix(l.e[s]) * g.segment<4>(7 * s + 3);
+    *n = RotationMatrix(l.e[s]) * nb;
+  };
+  Vec3 f = Vec3::Zero(), n = Vec3::Zero();
+  const Marker& mi = im.model.markers[jt.i];
+  if (l.offset[0] >= 0) {
+    Vec3 nc;
+    wrench(0, &f, &nc);
+    // moment about marker i: n_C + (C - P) x F with C - P = -A s_i
+    n = nc - (RotationMatrix(l.e[0]) * mi.position).cross(f);
+  } else if (l.offset[1] >= 0) {
+    // marker i on ground: the reaction on ground is minus the one on body j.
+    Vec3 fj, nj;
+    wrench(1, &fj, &nj);
+    f = -fj;
+    n = -nj - (l.r[1] - mi.position).cross(fj);
+  }
+  Eigen::Map<Vec3>(force, 3) = f;
+  Eigen::Map<Vec3>(torque, 3) = n;
+}
+
+double MultibodySystem::KineticEnergy(const double* q, const double* v) const {
+  double t = 0;
+  const Model& m = impl_->model;
+  for (size_t b = 0; b < m.bodies.size(); ++b) {
+    const int o = Model::coordinate_offset(static_cast<int>(b));
+    const Vec3 rd = Eigen::Map<const Vec3>(v + o);
+    const Vec3 wb = 2 * GMatrix(Eigen::Map<const Quat>(q + o + 3)) *
+                    Eigen::Map<const Quat>(v + o + 3);
+    t += 0.5 * m.bodies[b].mass * rd.squaredNorm() + 0.5 * wb.dot(m.bodies[b].inertia * wb);
+  }
+  return t;
+}
+
+double MultibodySystem::PotentialEnergy(double /*t*/, const double* q) const {
+  const Impl& im = *impl_;
+  const Model& m = im.model;
+  double u = 0;
+  for (size_t b = 0; b < m.bodies.size(); ++b) {
+    const int o = Model::coordinate_offset(static_cast<int>(b));
+    u -= m.bodies[b].mass * m.gravity.dot(Eigen::Map<const Vec3>(q + o));
+  }
+  const double* p = im.params.data();
+  Local l;
+  for (const Force& f : m.forces) {
+    if (f.type != ForceType::kSpringDamper) continue;
+    im.Gather(im.BodyOf(f.i), im.BodyOf(f.j), q, im.zeros.data(), im.zeros.data(), l);
+    const double len = im.Separation(f.i, f.j).Value(l).norm();
+    const double dl = len - f.free_length.Evaluate(p);
+    u += 0.5 * f.stiffness.Evaluate(p) * dl * dl - f.preload.Evaluate(p) * dl;
+  }
+  return u;
+}
+
+void MultibodySystem::ForceAction(int element, double /*t*/, const double* q, const double* v,
+                                  double* f_out, double* t_out) const {
+  const int force = element;
+  const Impl& im = *impl_;
+  const Force& fe = im.model.forces.at(force);
+  Local l;
+  im.Gather(im.BodyOf(fe.i), im.BodyOf(fe.j), q, v ? v : im.zeros.data(), im.zeros.data(), l);
+  Vec3 f;
+  Mat3x14 dq, dv;
+  im.ForceVector(force, im.ComputeForceValues(force), l, &f, &dq, &dv);
+  Eigen::Map<Vec3> F(f_out), T(t_out);
+  if (fe.type == ForceType::kTorque) {
+    F.setZero();
+    T = f;
+  } else {
+    F = f;
+    T.setZero();
+  }
+}
+
+}  // namespace mbdae::mbs
