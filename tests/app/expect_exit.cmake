@@ -1,0 +1,32 @@
+# Runs `mbdae COMMAND MODEL ARGS` on a copy of MODEL in WORKDIR and checks the exit code
+# (EXPECT), that a failing run says "mbdae: error: " and names the model file, and
+# whether the default results file exists afterwards (EXPECT_FILE YES/NO).
+get_filename_component(name ${MODEL} NAME)
+get_filename_component(stem ${MODEL} NAME_WE)
+set(dir ${WORKDIR}/${COMMAND}_${stem}_${EXPECT})
+file(REMOVE_RECURSE ${dir})
+file(MAKE_DIRECTORY ${dir})
+file(COPY ${MODEL} DESTINATION ${dir})
+execute_process(COMMAND ${MBDAE} ${COMMAND} ${name} ${ARGS} --quiet
+                WORKING_DIRECTORY ${dir} RESULT_VARIABLE code
+                OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT code STREQUAL "${EXPECT}")
+  message(FATAL_ERROR "exit code ${code}, expected ${EXPECT}\nstdout: ${out}\nstderr: ${err}")
+endif()
+if(NOT EXPECT STREQUAL "0")
+  string(FIND "${err}" "mbdae: error: " at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "no 'mbdae: error: ' on stderr: ${err}")
+  endif()
+  if(EXPECT STREQUAL "2")
+    string(FIND "${err}" "${name}" at)
+    if(at EQUAL -1)
+      message(FATAL_ERROR "the message does not name ${name}: ${err}")
+    endif()
+  endif()
+endif()
+if(EXPECT_FILE AND NOT EXISTS ${dir}/${stem}.h5)
+  message(FATAL_ERROR "${stem}.h5 was not written")
+elseif(NOT EXPECT_FILE AND EXISTS ${dir}/${stem}.h5)
+  message(FATAL_ERROR "${stem}.h5 was written although the run was refused")
+endif()
