@@ -479,10 +479,16 @@ class Loader {
     }
   }
 
+  // Names of bodies, markers, joints and forces: letters, digits, '_' and '-' (they
+  // appear in marker names BODY.MARKER and in the results file's paths).
+  void CheckName(const YAML::Node& node, const std::string& element, const std::string& name,
+                 const char* what) const {
+    bool ok = !name.empty();
+    for (char c : name) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-');
+    if (!ok) Fail(node, element, std::string("a ") + what + " name may only use letters, digits, '_' and '-'");
+  }
   void CheckMarkerName(const YAML::Node& node, const std::string& element, const std::string& name) const {
-    if (name.empty() || name.find('.') != std::string::npos || name.find_first_of(" \t") != std::string::npos) {
-      Fail(node, element, "a marker name must be non-empty, without '.' or spaces");
-    }
+    CheckName(node, element, name, "marker");
   }
 
   void LoadBodies(const YAML::Node& node) {
@@ -501,10 +507,7 @@ class Loader {
     Body body;
     body.name = String(Required(node, element, "name"), element, "name");
     body.where = At(node);
-    if (body.name.empty() || body.name.find('.') != std::string::npos ||
-        body.name.find_first_of(" \t") != std::string::npos) {
-      Fail(node["name"], element, "a body name must be non-empty, without '.' or spaces");
-    }
+    CheckName(node["name"], element, body.name, "body");
     if (body.name == "ground") Fail(node["name"], element, "'ground' is reserved for the fixed frame");
     if (model_.find_body(body.name) >= 0) Fail(node["name"], element, "duplicate body name");
 
@@ -675,6 +678,7 @@ class Loader {
       for (const Joint& other : model_.joints) {
         if (other.name == joint.name) Fail(n["name"], element, "duplicate joint name");
       }
+      CheckName(n["name"], element, joint.name, "joint");
       enum JointKind { kFixed, kSpherical, kRevolute, kPrismatic, kCylindrical, kUniversal, kPlanar, kGeneric, kMotion, kGear };
       const YAML::Node type_node = Required(n, element, "type");
       const JointKind type = Enum<JointKind>(type_node, element, "joint type",
@@ -714,6 +718,10 @@ class Loader {
           joint.locks |= bit;
         }
       } else {
+        if (n["lock"]) {
+          Fail(KeyNode(n, "lock"), element,
+               "'lock' is only for joints of type generic; a " + type_node.Scalar() + " joint locks what its type says");
+        }
         CheckKeys(n, element, {"name", "type", "i", "j"});
       }
       joint.i = Marker(Required(n, element, "i"), element, "i");
@@ -739,6 +747,7 @@ class Loader {
       for (const Force& other : model_.forces) {
         if (other.name == force.name) Fail(n["name"], element, "duplicate force name");
       }
+      CheckName(n["name"], element, force.name, "force");
       enum ForceKind { kSpring, kForce, kTorque, kBushing, kUser };
       const YAML::Node type_node = Required(n, element, "type");
       const ForceKind type = Enum<ForceKind>(type_node, element, "force type",

@@ -3,7 +3,19 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <new>
 #include <string>
+
+// Counts heap allocations, to show that Evaluate makes none.
+static int g_allocations = 0;
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace mbdae::mbs {
 namespace {
@@ -172,6 +184,11 @@ TEST(Expression, EvaluateIsRepeatableAndConst) {
   const double first = e.Evaluate(p);
   EXPECT_DOUBLE_EQ(first, 1.0 + 4.0);
   EXPECT_EQ(e.Evaluate(p), first);  // nothing left over from the first call
+  const int before = g_allocations;
+  double sum = 0;
+  for (int k = 0; k < 100; ++k) sum += e.Evaluate(p);
+  EXPECT_EQ(g_allocations, before);  // evaluation allocates nothing
+  EXPECT_DOUBLE_EQ(sum, 100 * first);
   const Expression copy = e;
   EXPECT_EQ(copy.Evaluate(p), first);
 }

@@ -317,6 +317,17 @@ TEST(Loader, MiscErrors) {
                        "measure 'x': 'i': unknown body 'bb' in marker 'bb.cm'; did you mean 'b'?"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b, mass: 1}]\nmeasures: [{name: x, type: translational, i: b, component: x}]\n"),
                        "must be written BODY.MARKER"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: a b}]\n"),
+                       "m.yaml:2:17: body 'a b': a body name may only use letters, digits, '_' and '-'"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces: [{name: f/1, type: torque, i: b.cm, value: [0, 0, 1]}]\n"),
+                       "force 'f/1': a force name may only use"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: h, type: revolute, i: b.cm, j: ground.O, lock: [x]}\n"),
+                       "m.yaml:4:53: joint 'h': 'lock' is only for joints of type generic"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: g, type: generic, i: b.cm, j: ground.O, lock: [x, rq]}\n"),
+                       "joint 'g': unknown lock 'rq'"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: g, type: generic, i: b.cm, j: ground.O, lock: [x, x]}\n"),
+                       "joint 'g': 'x' is locked twice"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b, mass: 1e999}]\n"), "number out of range"));
 }
 
 TEST(Loader, UnreadableFile) {
