@@ -36,6 +36,7 @@ std::string FormatError(const SourceLocation& where, const std::string& element,
 }
 
 std::string Num(double v) {
+  if (std::isnan(v)) return "nan";
   std::ostringstream s;
   s << std::setprecision(10) << v;
   return s.str();

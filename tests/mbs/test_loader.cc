@@ -328,6 +328,12 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: g, type: generic, i: b.cm, j: ground.O, lock: [x, x]}\n"),
                        "joint 'g': 'x' is locked twice"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b, mass: 1e999}]\n"), "number out of range"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nparameters: {a: sqrt(-1)}\n"),
+                       "m.yaml:2:17: parameter 'a': evaluates to nan ('sqrt(-1)')"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b, mass: 1/0}]\n"), "body 'b': 'mass' evaluates to inf"));
+  LoadOptions options;
+  options.parameter_overrides["k"] = 1;  // no parameters block: no line to point at
+  EXPECT_EQ(LoadError("format: 1\n", options).find("m.yaml: parameter 'k': cannot set 'k=1': the model has no such parameter"), 0u);
 }
 
 TEST(Loader, UnreadableFile) {
