@@ -44,6 +44,14 @@ class MultibodySystem final : public dae::MechanicalSystem {
 
   // Outputs at a solved state (lambda of the full constraint set).
   // Measure values, in Model::measures order (without offset_initial applied).
+  // Translational: the x|y|z component (marker j's axes or world axes) of
+  // d = x_i - x_j, or |d|; velocity/acceleration are its exact time derivatives.
+  // Rotational about axis k of marker j (p = k+1, n = k+2 cyclic): the angle
+  // atan2(p_i . n_j, p_i . p_j) in (-pi, pi] (the caller unwraps turns);
+  // angular_velocity/angular_acceleration are the exact first/second time derivatives
+  // of that angle, which equal the components along j's k-axis of the relative angular
+  // velocity/acceleration of marker i's frame whenever the k-axes stay parallel (a
+  // revolute joint). v and a may be null (taken as zero).
   void EvaluateMeasures(double t, const double* q, const double* v, const double* a,
                         double* values) const;
   // Reaction of joint k on body i at marker i, world axes: force and torque (3 + 3).

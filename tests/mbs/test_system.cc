@@ -7,11 +7,24 @@
 #include <functional>
 #include <iostream>
 #include <map>
+#include <memory>
+#include <new>
+#include <cstdlib>
 #include <random>
 
 #include "mbs/kinematics.h"
 #include "mbs/system.h"
 #include "tests/support/random_models.h"
+
+// Counts heap allocations, to check that Evaluate does none.
+static long g_allocations = 0;
+void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace mbdae::mbs {
 namespace {
@@ -258,6 +271,28 @@ TEST(MultibodySystem, EvaluateIsRepeatable) {
   EXPECT_EQ(o1.constraint, o2.constraint);
   EXPECT_EQ(o1.acc_rhs, o2.acc_rhs);
   for (int m = 0; m < dae::kNumMatrices; ++m) EXPECT_EQ(o1.matrix[m], o2.matrix[m]) << m;
+}
+
+TEST(MultibodySystem, EvaluateDoesNotAllocate) {
+  std::mt19937 rng(12);
+  const Model model = RandomModel(rng);
+  MultibodySystem sys(model);
+  const RandomState s = MakeRandomState(rng, model, sys.num_constraints());
+  Outputs o = EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data());
+  dae::EvalInput in;
+  in.q = s.q.data(); in.v = s.v.data(); in.a = s.a.data(); in.w = s.w.data();
+  dae::EvalOutput out;
+  out.force = o.force.data();
+  out.constraint = o.constraint.data();
+  out.constraint_dt = o.constraint_dt.data();
+  out.acc_rhs = o.acc_rhs.data();
+  for (int m = 0; m < dae::kNumMatrices; ++m) out.matrix[m] = o.matrix[m].data();
+  const long before = g_allocations;
+  EXPECT_EQ(sys.Evaluate(in, out), 0);
+  EXPECT_EQ(g_allocations - before, 0);
+  // the counter does count
+  auto probe = std::make_unique<std::vector<double>>(100);
+  EXPECT_GT(g_allocations - before, 0);
 }
 
 // Measures: the velocity is the time derivative of the position along q + s v, and the
