@@ -395,6 +395,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   for (const auto& j : model.joints) layout.joints.push_back(j.name);
   for (const auto& f : model.forces) layout.forces.push_back(f.name);
   io::ResultsFile file(options.results_path, layout);
+  file.set_flush_interval(options.flush_interval);
 
   file.SetAttribute("format", 1);
   file.SetAttribute("model", options.model_path.empty() ? model.file : options.model_path);

@@ -95,6 +95,9 @@ struct SimulationOptions {
   std::string results_path;  // the file to create (after everything checked out)
   // Called after every output row with (t, t_end).
   std::function<void(double, double)> progress;
+  // Seconds of wall time between flushes of the results file (0: after every row). The
+  // file is always flushed at the end and when the run fails.
+  double flush_interval = 0;
 };
 
 struct SimulationSummary {

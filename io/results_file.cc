@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <chrono>
 #include <stdexcept>
 #include <utility>
 
@@ -78,6 +79,7 @@ void CheckName(const std::string& name, const std::string& kind) {
 // One extendible dataset of rows x cols doubles (cols == 0: a 1-D dataset of rows).
 struct RowDataset {
   Handle id;
+  std::vector<double> pending;  // rows appended but not written yet
   int cols = 0;     // 0 for a 1-D dataset
   int rank = 1;
 };
@@ -136,28 +138,50 @@ struct ResultsFile::Impl {
   std::vector<RowDataset> forces;         // 2 per force
   RowDataset kinetic, potential, position_violation, velocity_violation;
   std::vector<double> zeros;
+  double flush_interval = 0;
+  std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
 
-  // Extends d by one row and writes `values` (cols of them, or one for 1-D) there.
+  long written = 0;  // rows already in the datasets; rows - written are pending
+
+  // Queues one row of d (cols values, or one for 1-D; null: zeros).
   void Append(RowDataset& d, const double* values) {
     const int width = std::max(1, d.cols);
-    if (values == nullptr) {
-      if (static_cast<int>(zeros.size()) < width) zeros.assign(width, 0.0);
-      values = zeros.data();
-    }
-    hsize_t new_dims[2] = {static_cast<hsize_t>(rows + 1), static_cast<hsize_t>(d.cols)};
+    if (d.rank == 2 && d.cols == 0) return;  // nothing to keep of a zero-width row
+    if (values == nullptr)
+      d.pending.insert(d.pending.end(), width, 0.0);
+    else
+      d.pending.insert(d.pending.end(), values, values + width);
+  }
+
+  // Extends d to `rows` rows and writes its pending rows there.
+  void WritePending(RowDataset& d) {
+    const hsize_t n = static_cast<hsize_t>(rows - written);
+    hsize_t new_dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(d.cols)};
     Check(H5Dset_extent(d.id.get(), new_dims), "extend a dataset of " + path);
-    if (d.rank == 2 && d.cols == 0) return;  // nothing to write in a zero-width row
+    if (n == 0 || d.pending.empty()) return;
+    assert(d.pending.size() == n * std::max(1, d.cols));
     Handle file_space = Check(H5Dget_space(d.id.get()), H5Sclose, "get a dataspace");
-    hsize_t start[2] = {static_cast<hsize_t>(rows), 0};
-    hsize_t count[2] = {1, static_cast<hsize_t>(d.cols)};
+    hsize_t start[2] = {static_cast<hsize_t>(written), 0};
+    hsize_t count[2] = {n, static_cast<hsize_t>(d.cols)};
     Check(H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr),
-          "select a row");
-    hsize_t mem_count = static_cast<hsize_t>(width);
+          "select rows");
+    hsize_t mem_count = static_cast<hsize_t>(d.pending.size());
     Handle mem_space = Check(H5Screate_simple(1, &mem_count, nullptr), H5Sclose,
                              "create a dataspace");
     Check(H5Dwrite(d.id.get(), H5T_NATIVE_DOUBLE, mem_space.get(), file_space.get(), H5P_DEFAULT,
-                   values),
-          "write a row to " + path);
+                   d.pending.data()),
+          "write rows to " + path);
+    d.pending.clear();
+  }
+
+  void WriteAllPending() {
+    if (written == rows) return;
+    for (RowDataset* d : {&time, &q, &v, &a, &lambda, &kinetic, &potential, &position_violation,
+                          &velocity_violation})
+      WritePending(*d);
+    for (auto* group : {&body_datasets, &measures, &joints, &forces})
+      for (auto& d : *group) WritePending(d);
+    written = rows;
   }
 
   void DeleteAttributeIfPresent(const std::string& name) {
@@ -228,6 +252,11 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
 ResultsFile::~ResultsFile() {
   if (impl_ && impl_->file.valid()) {
     QuietErrors quiet;
+    try {
+      impl_->WriteAllPending();
+    } catch (const std::exception&) {
+      // A destructor cannot report; the rows already flushed stay in the file.
+    }
     H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
   }
 }
@@ -258,8 +287,13 @@ void ResultsFile::AppendRow(const ResultsRow& row) {
   m.Append(m.position_violation, &row.position_violation);
   m.Append(m.velocity_violation, &row.velocity_violation);
   ++m.rows;
-  Flush();
+  const auto now = std::chrono::steady_clock::now();
+  if (m.flush_interval <= 0 ||
+      std::chrono::duration<double>(now - m.last_flush).count() >= m.flush_interval)
+    Flush();
 }
+
+void ResultsFile::set_flush_interval(double seconds) { impl_->flush_interval = seconds; }
 
 void ResultsFile::SetAttribute(const std::string& name, double value) {
   QuietErrors quiet;
@@ -311,7 +345,9 @@ void ResultsFile::SetAttribute(const std::string& name, const std::vector<std::s
 
 void ResultsFile::Flush() {
   QuietErrors quiet;
+  impl_->WriteAllPending();
   Check(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), "flush " + impl_->path);
+  impl_->last_flush = std::chrono::steady_clock::now();
 }
 
 long ResultsFile::rows() const { return impl_->rows; }

@@ -7,8 +7,9 @@
 //   /measures/NAME N; /joints/NAME/{force,torque} N x 3; /forces/NAME/{force,torque} N x 3;
 //   /energy/{kinetic,potential} N; /violation/{position,velocity} N (max |C|, max |C_q v + C_t|).
 // Name lists are variable-length UTF-8 string datasets. Every dataset is chunked with an
-// unlimited first dimension and the file is flushed after every row, so a run that is
-// stopped keeps the rows it wrote.
+// unlimited first dimension and, by default, the rows are written and the file flushed
+// after every row, so a run that is stopped keeps the rows it computed (see
+// set_flush_interval for the cheaper variant).
 #pragma once
 
 #include <map>
@@ -54,7 +55,9 @@ class ResultsFile {
   ResultsFile(const ResultsFile&) = delete;
   ResultsFile& operator=(const ResultsFile&) = delete;
 
-  void AppendRow(const ResultsRow& row);  // extends every dataset by one row and flushes
+  // Adds one row to every dataset; written and flushed now or, with a flush interval,
+  // at the next flush.
+  void AppendRow(const ResultsRow& row);
   // Root attributes (numbers and strings); setting one again replaces it.
   void SetAttribute(const std::string& name, double value);
   void SetAttribute(const std::string& name, const std::string& value);
@@ -63,7 +66,11 @@ class ResultsFile {
   void SetAttribute(const std::string& name, long value);
   void SetAttribute(const std::string& name, const char* value) { SetAttribute(name, std::string(value)); }
   void SetAttribute(const std::string& name, const std::vector<std::string>& values);
-  void Flush();
+  void Flush();  // writes the pending rows and flushes the file
+  // Added: AppendRow flushes when at least this many seconds (wall clock) passed since
+  // the last flush; 0 (the default) flushes after every row. A positive value bounds
+  // what a killed run loses to that much computing time and makes long outputs cheap.
+  void set_flush_interval(double seconds);
   long rows() const;
   const std::string& path() const;
 

@@ -245,6 +245,39 @@ TEST(ResultsFile, RowsSurviveAKilledWriter) {
   std::remove(path.c_str());
 }
 
+// With a flush interval, rows wait in memory until the next flush (or the end), and
+// then land in order.
+TEST(ResultsFile, BufferedRowsAreWrittenInOrderAtFlush) {
+  const std::string path = TempPath("buffered");
+  {
+    ResultsFile file(path, SmallLayout());
+    file.set_flush_interval(1e9);
+    for (int k = 0; k < 4; ++k) {
+      RowData d(k);
+      file.AppendRow(d.Row(0.25 * k));
+    }
+    file.Flush();
+    for (int k = 4; k < 7; ++k) {
+      RowData d(k);
+      file.AppendRow(d.Row(0.25 * k));
+    }
+    EXPECT_EQ(file.rows(), 7);
+  }  // the destructor writes the last three
+  hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  std::vector<hsize_t> dims;
+  auto time = ReadDoubles(f, "/time", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({7}));
+  auto jt = ReadDoubles(f, "/joints/hinge/torque", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({7, 3}));
+  for (int k = 0; k < 7; ++k) {
+    EXPECT_DOUBLE_EQ(time[k], 0.25 * k);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(jt[3 * k + c], 1000.0 * k + 603 + c);
+  }
+  H5Fclose(f);
+  std::remove(path.c_str());
+}
+
 // No constraints, no measures: zero-width datasets are still well formed.
 TEST(ResultsFile, EmptyLayoutParts) {
   const std::string path = TempPath("empty");
