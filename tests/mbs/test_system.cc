@@ -633,6 +633,42 @@ TEST(MultibodySystem, ZeroLengthSpringIsRecoverable) {
   EXPECT_NEAR(EvaluateAll(sys, q.data(), v.data(), nullptr, nullptr).force[0], -5.0, 1e-14);
 }
 
+// Force constants are expressions of the parameters, evaluated at every Evaluate from
+// the system's current parameter values.
+TEST(MultibodySystem, ForceConstantsFollowParameters) {
+  Model model;
+  model.parameters.push_back(Parameter{"k", 10.0, "", {}});
+  model.markers.push_back(Marker{"ground.O", -1, Vec3::Zero(), Mat3::Identity(), {}});
+  Body b;
+  b.name = "b";
+  b.mass = 1;
+  b.inertia = Mat3::Identity();
+  model.bodies.push_back(b);
+  model.markers.push_back(Marker{"b.cm", 0, Vec3::Zero(), Mat3::Identity(), {}});
+  SymbolTable symbols;
+  symbols.parameters = {"k"};
+  Force f;
+  f.name = "spring";
+  f.type = ForceType::kSpringDamper;
+  f.i = 1;
+  f.j = 0;
+  f.stiffness = Expression::Parse("2*k", symbols);
+  f.free_length = Expression::Constant(0.25);
+  model.forces.push_back(f);
+  MultibodySystem sys(model);
+  ASSERT_EQ(sys.parameters().size(), 1u);
+  EXPECT_EQ(sys.parameters()[0], 10.0);
+  std::vector<double> q = {0, 0.75, 0, 1, 0, 0, 0}, v(7, 0.0);
+  // f = -2 k (l - l0) along +y
+  EXPECT_NEAR(EvaluateAll(sys, q.data(), v.data(), nullptr, nullptr).force[1], -2 * 10 * 0.5, 1e-13);
+  sys.parameters()[0] = 3.0;
+  EXPECT_NEAR(EvaluateAll(sys, q.data(), v.data(), nullptr, nullptr).force[1], -2 * 3 * 0.5, 1e-13);
+  EXPECT_NEAR(sys.PotentialEnergy(0, q.data()), 0.5 * 2 * 3 * 0.25, 1e-13);
+  MultibodySystem other(model, {7.0});
+  EXPECT_NEAR(EvaluateAll(other, q.data(), v.data(), nullptr, nullptr).force[1], -2 * 7 * 0.5, 1e-13);
+  EXPECT_THROW(MultibodySystem(model, {1.0, 2.0}), std::invalid_argument);
+}
+
 TEST(MultibodySystem, RejectsBadInput) {
   Model model;
   model.markers.push_back(Marker{"ground.O", -1, Vec3::Zero(), Mat3::Identity(), {}});
