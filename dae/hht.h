@@ -27,7 +27,11 @@ struct HhtOptions {
   bool modified = true;
   // Newton: stop when the weighted norm of the correction is below this fraction of the
   // tolerance (adaptive) or below newton_tolerance (fixed step).
-  double newton_tolerance = 1e-10;
+  double newton_tolerance = 1e-12;
+  // An iteration whose correction stops contracting (rate > 0.5) while its norm is below
+  // newton_noise_factor * the Newton threshold has reached the round-off floor of the
+  // linear solve and is accepted as converged (counted in Summary::newton_noise_stops).
+  double newton_noise_factor = 1e4;
   int max_newton_iterations = 10;
   // Reuse the factorised Newton matrix across iterations and steps while the
   // convergence rate stays below this value.

@@ -33,6 +33,7 @@ struct Summary {
   long jacobian_evaluations = 0;
   long factorizations = 0;   // numeric (re)factorisations
   long residual_evaluations = 0;
+  long newton_noise_stops = 0;  // HHT: Newton iterations accepted at the round-off floor
   double h_last = 0;         // last step size used
 
   std::string BriefReport() const;
