@@ -27,8 +27,12 @@ bool IdaOptions::IsValid(std::string* error) const {
   if (!(rtol > 0) || !std::isfinite(rtol)) return fail("rtol must be positive and finite");
   if (!(atol > 0) || !std::isfinite(atol)) return fail("atol must be positive and finite");
   if (!(max_step >= 0) || !std::isfinite(max_step)) return fail("max_step must be >= 0 (0: no limit)");
+  if (!(min_step >= 0) || !std::isfinite(min_step)) return fail("min_step must be >= 0 (0: no limit)");
+  if (max_step > 0 && min_step > max_step) return fail("min_step must not exceed max_step");
   if (!(initial_step >= 0) || !std::isfinite(initial_step))
     return fail("initial_step must be >= 0 (0: IDA chooses)");
+  if (!(algebraic_atol >= 0) || !std::isfinite(algebraic_atol))
+    return fail("algebraic_atol must be >= 0 (0: left out of the Newton test)");
   if (max_order < 1 || max_order > 5) return fail("max_order must be in [1, 5]");
   if (max_num_steps < 1) return fail("max_num_steps must be >= 1");
   return true;
@@ -223,6 +227,7 @@ class IdaIntegrator final : public Integrator {
     solver_.reset();
     matrix_.reset();
     id_.reset();
+    atol_.reset();
     yp_.reset();
     y_.reset();
     context_.reset();
@@ -266,7 +271,19 @@ class IdaIntegrator final : public Integrator {
     Check(IDASetErrHandlerFn(mem, &IdaIntegrator::ErrorHandler, this), "IDASetErrHandlerFn");
     Check(IDAInit(mem, &IdaIntegrator::ResidualCallback, x0.t, y_.get(), yp_.get()), "IDAInit");
     Check(IDASetUserData(mem, this), "IDASetUserData");
-    Check(IDASStolerances(mem, options_.rtol, options_.atol), "IDASStolerances");
+    // lambda and mu are out of the error test; their absolute tolerance only enters the
+    // Newton convergence test. With small tolerances they would stall it: at small
+    // steps the iteration matrix of the index-2 form has a condition number of order
+    // 1/h^2 and their increments carry that round-off. By default they are left out of
+    // the convergence test too (weight ~ 0): q and v, which they drive, are tested.
+    atol_.reset(N_VNew_Serial(n, ctx));
+    if (!atol_) throw std::runtime_error("IDA: N_VNew_Serial failed");
+    {
+      double* atol = N_VGetArrayPointer(atol_.get());
+      const double alg = options_.algebraic_atol > 0 ? options_.algebraic_atol : 1e100;
+      for (int i = 0; i < n; ++i) atol[i] = i < 2 * nq ? options_.atol : alg;
+    }
+    Check(IDASVtolerances(mem, options_.rtol, atol_.get()), "IDASVtolerances");
     Check(IDASetLinearSolver(mem, solver_.get(), matrix_.get()), "IDASetLinearSolver");
     Check(IDASetJacFn(mem, &IdaIntegrator::JacobianCallback), "IDASetJacFn");
     Check(IDASetId(mem, id_.get()), "IDASetId");
@@ -274,6 +291,7 @@ class IdaIntegrator final : public Integrator {
     Check(IDASetMaxNumSteps(mem, options_.max_num_steps), "IDASetMaxNumSteps");
     Check(IDASetMaxOrd(mem, options_.max_order), "IDASetMaxOrd");
     if (options_.max_step > 0) Check(IDASetMaxStep(mem, options_.max_step), "IDASetMaxStep");
+    if (options_.min_step > 0) Check(IDASetMinStep(mem, options_.min_step), "IDASetMinStep");
     if (options_.initial_step > 0) Check(IDASetInitStep(mem, options_.initial_step), "IDASetInitStep");
 
     state_ = x0;
@@ -308,7 +326,7 @@ class IdaIntegrator final : public Integrator {
     if (flag < 0) {
       std::ostringstream os;
       os << "IDA failed at t = " << ToString(t_ret) << " with " << IDAGetReturnFlagName(flag);
-      if (!callback_error_.empty()) os << ": " << callback_error_;
+      if (!callback_error_.empty()) os << "; last system error: " << callback_error_;
       if (!ida_error_.empty()) os << " (" << ida_error_ << ")";
       summary_.status = Summary::Status::kFailed;
       summary_.message = os.str();
@@ -439,7 +457,7 @@ class IdaIntegrator final : public Integrator {
   std::string callback_error_, ida_error_;
   // Destroyed in reverse order: IDA memory first, the context last.
   ContextPtr context_;
-  VectorPtr y_, yp_, id_;
+  VectorPtr y_, yp_, id_, atol_;
   MatrixPtr matrix_;
   LinearSolverPtr solver_;
   IdaMemPtr mem_;
