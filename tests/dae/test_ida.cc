@@ -75,7 +75,9 @@ void CheckJacobian(MechanicalSystem& sys, unsigned seed) {
         const double fd = (Fp[r] - Fm[r]) / (2 * h);
         const int k = p.find(r, c);
         const double an = k >= 0 ? J[k] : 0.0;
-        if (k < 0) EXPECT_EQ(fd, 0.0) << "entry (" << r << ", " << c << ") not in the pattern";
+        if (k < 0) {
+          EXPECT_EQ(fd, 0.0) << "entry (" << r << ", " << c << ") not in the pattern";
+        }
         max_err = std::max(max_err, std::abs(fd - an));
         max_entry = std::max(max_entry, std::abs(an));
         EXPECT_NEAR(an, fd, 1e-7 * (1 + std::abs(an))) << "entry (" << r << ", " << c << ")";
