@@ -259,6 +259,87 @@ TEST(MakeConsistent, DependentEquationBetweenIndependentOnes) {
   EXPECT_LT(res.acc, 1e-12);
 }
 
+// A planar chain of n unit point masses in Cartesian coordinates: equation k keeps
+// point b_k at distance r_k from point a_k (a_k = -1: the fixed origin).
+class DistanceChain : public MechanicalSystem {
+ public:
+  struct Link { int a, b; double r; };
+  DistanceChain(int points, std::vector<Link> links) : n_(points), links_(std::move(links)) {
+    std::vector<std::pair<int, int>> d, e;
+    for (int i = 0; i < 2 * n_; ++i) d.push_back({i, i});
+    for (int k = 0; k < num_constraints(); ++k)
+      for (int p : {links_[k].a, links_[k].b})
+        if (p >= 0) { e.push_back({k, 2 * p}); e.push_back({k, 2 * p + 1}); }
+    diag_ = CscPattern::FromEntries(2 * n_, 2 * n_, d);
+    empty_ = CscPattern::FromEntries(2 * n_, 2 * n_, {});
+    cq_ = CscPattern::FromEntries(num_constraints(), 2 * n_, e);
+  }
+  int num_coordinates() const override { return 2 * n_; }
+  int num_constraints() const override { return static_cast<int>(links_.size()); }
+  const CscPattern& pattern(Matrix m) const override {
+    if (m == Matrix::kMass) return diag_;
+    if (m == Matrix::kConstraintDq) return cq_;
+    return empty_;  // the other matrices are not needed by MakeConsistent
+  }
+  int Evaluate(const EvalInput& in, EvalOutput& out) override {
+    if (out.force)
+      for (int i = 0; i < n_; ++i) { out.force[2 * i] = 0; out.force[2 * i + 1] = -9.81; }
+    if (double* M = out[Matrix::kMass]) std::fill(M, M + 2 * n_, 1.0);
+    for (int k = 0; k < num_constraints(); ++k) {
+      const Link& l = links_[k];
+      double d[2], dv[2];
+      for (int j = 0; j < 2; ++j) {
+        d[j] = in.q[2 * l.b + j] - (l.a >= 0 ? in.q[2 * l.a + j] : 0.0);
+        dv[j] = in.v ? in.v[2 * l.b + j] - (l.a >= 0 ? in.v[2 * l.a + j] : 0.0) : 0.0;
+      }
+      if (out.constraint) out.constraint[k] = d[0] * d[0] + d[1] * d[1] - l.r * l.r;
+      if (out.constraint_dt) out.constraint_dt[k] = 0;
+      if (out.acc_rhs) out.acc_rhs[k] = -2 * (dv[0] * dv[0] + dv[1] * dv[1]);
+      if (double* C = out[Matrix::kConstraintDq])
+        for (int j = 0; j < 2; ++j) {
+          C[cq_.find(k, 2 * l.b + j)] = 2 * d[j];
+          if (l.a >= 0) C[cq_.find(k, 2 * l.a + j)] = -2 * d[j];
+        }
+    }
+    return 0;
+  }
+
+ private:
+  int n_;
+  std::vector<Link> links_;
+  CscPattern diag_, empty_, cq_;
+};
+
+TEST(MakeConsistent, SparseChainWithADuplicatedLinkInTheMiddle) {
+  // Eight links; equation 4 repeats link 2 -> 3 (reversed, with the same length).
+  const int n = 8;
+  std::vector<DistanceChain::Link> links = {{-1, 0, 1.0}, {0, 1, 0.5}, {1, 2, 0.7}, {2, 3, 0.4}};
+  links.push_back({3, 2, 0.4});
+  for (int i = 4; i < n; ++i) links.push_back({i - 1, i, 0.3 + 0.1 * i});
+  DistanceChain sys(n, links);
+  State x;
+  x.q.resize(2 * n);
+  x.v.resize(2 * n);
+  for (int i = 0; i < n; ++i) {
+    x.q[2 * i] = 0.4 * (i + 1) + 0.05 * std::sin(3.0 * i);
+    x.q[2 * i + 1] = -0.2 * i + 0.05 * std::cos(5.0 * i);
+    x.v[2 * i] = 0.3 * std::cos(1.0 * i);
+    x.v[2 * i + 1] = 0.2 * std::sin(2.0 * i);
+  }
+  const auto report = MakeConsistent(sys, x);
+  ASSERT_TRUE(report.ok) << report.message;
+  EXPECT_EQ(report.redundant, std::vector<int>({4}));
+  EXPECT_EQ(x.lambda[4], 0.0);
+  EXPECT_EQ(FindRedundantConstraints(sys, 0.0, x.q.data(), 1e-9), std::vector<int>({4}));
+  const Residuals res = Check(sys, x);
+  EXPECT_LT(res.pos, 1e-12);
+  EXPECT_LT(res.vel, 1e-12);
+  EXPECT_LT(res.dyn, 1e-11);
+  EXPECT_LT(res.acc, 1e-11);
+  EXPECT_GT(report.initial_position_violation, 1e-2);  // there was something to correct
+  EXPECT_GT(report.max_position_change, 1e-3);
+}
+
 TEST(MakeConsistent, InconsistentRedundantConstraintIsReported) {
   // Concentric circles of radii 1 and 2: C_q has rank 1 and equation 1 cannot hold.
   PointOnCircles sys({{0, 0, 1, 1}, {0, 0, 2, 1}});
