@@ -63,9 +63,26 @@ class TransposedQr {
  public:
   // cq: values of C_q (nc x nq) in the pattern `p`; `rank_tolerance` relative to the
   // largest row norm of C_q.
-  TransposedQr(const CscPattern& p, const double* cq, double rank_tolerance)
+  // `order` (a permutation of the equations, or empty for the natural order) is the
+  // elimination order: of dependent equations the later ones in it are set aside.
+  TransposedQr(const CscPattern& p, const double* cq, double rank_tolerance,
+               const std::vector<int>& order)
       : nc_(p.rows), nq_(p.cols) {
     assert(nc_ > 0);
+    if (!order.empty()) {
+      std::vector<char> seen(nc_, 0);
+      bool ok = static_cast<int>(order.size()) == nc_;
+      for (int k = 0; ok && k < nc_; ++k) {
+        ok = order[k] >= 0 && order[k] < nc_ && !seen[order[k]];
+        if (ok) seen[order[k]] = 1;
+      }
+      if (!ok)
+        throw std::invalid_argument("consistent: elimination_order is not a permutation of the " +
+                                    std::to_string(nc_) + " constraint equations");
+    }
+    std::vector<int> pos(nc_), eq(nc_);
+    for (int j = 0; j < nc_; ++j) eq[j] = order.empty() ? j : order[j];
+    for (int j = 0; j < nc_; ++j) pos[eq[j]] = j;
     cholmod_common* cc = common_.get();
     // C_q^T is nq x nc; its CSC arrays are the CSR arrays of C_q.
     cholmod_sparse* At = cholmod_l_allocate_sparse(nq_, nc_, std::max(1, p.nnz()), /*sorted=*/1,
@@ -75,14 +92,14 @@ class TransposedQr {
     auto* Ai = static_cast<Long*>(At->i);
     auto* Ax = static_cast<double*>(At->x);
     std::fill(Ap, Ap + nc_ + 1, 0);
-    for (int k = 0; k < p.nnz(); ++k) ++Ap[p.row_index[k] + 1];
+    for (int k = 0; k < p.nnz(); ++k) ++Ap[pos[p.row_index[k]] + 1];
     for (int r = 0; r < nc_; ++r) Ap[r + 1] += Ap[r];
     std::vector<Long> next(Ap, Ap + nc_);
     std::vector<double> row_norm2(nc_, 0.0);
     for (int c = 0; c < nq_; ++c) {
       for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k) {
         const int r = p.row_index[k];
-        const Long dst = next[r]++;
+        const Long dst = next[pos[r]]++;
         Ai[dst] = c;  // columns visited in increasing order: rows of C_q^T sorted
         Ax[dst] = cq[k];
         row_norm2[r] += cq[k] * cq[k];
@@ -109,7 +126,7 @@ class TransposedQr {
     const auto* Ri = static_cast<const Long*>(R_->i);
     Long pivot = 0;
     for (int j = 0; j < nc_; ++j) {
-      const int equation = E ? static_cast<int>(E[j]) : j;
+      const int equation = eq[E ? static_cast<int>(E[j]) : j];
       const bool live = Rp[j + 1] > Rp[j] && Ri[Rp[j + 1] - 1] == pivot && pivot < rank_;
       if (live) {
         live_.push_back({j, equation});
@@ -298,7 +315,8 @@ class KeptConstraints final : public MechanicalSystem {
 }  // namespace
 
 std::vector<int> FindRedundantConstraints(MechanicalSystem& system, double t, const double* q,
-                                          double rank_tolerance) {
+                                          double rank_tolerance,
+                                          const std::vector<int>& elimination_order) {
   const int nc = system.num_constraints();
   if (nc == 0) return {};
   if (!(rank_tolerance > 0 && rank_tolerance < 1))
@@ -315,7 +333,7 @@ std::vector<int> FindRedundantConstraints(MechanicalSystem& system, double t, co
   if (code != 0)
     throw std::runtime_error(std::string("FindRedundantConstraints: the system cannot evaluate "
                                          "C_q: ") + system.last_error());
-  TransposedQr qr(p, cq.data(), rank_tolerance);
+  TransposedQr qr(p, cq.data(), rank_tolerance, elimination_order);
   return qr.Dependent();
 }
 
@@ -384,7 +402,7 @@ ConsistencyReport MakeConsistent(MechanicalSystem& system, State& x,
     double violation = report.initial_position_violation;
     bool converged = violation <= options.position_tolerance;
     while (!converged && report.iterations < options.max_iterations) {
-      TransposedQr qr(pcq, cq.data(), options.rank_tolerance);
+      TransposedQr qr(pcq, cq.data(), options.rank_tolerance, options.elimination_order);
       for (int r = 0; r < nc; ++r) rhs[r] = -c[r];
       qr.MinNormSolve(rhs.data(), dq.data());
       double step = 0, size = 0;
@@ -414,7 +432,7 @@ ConsistencyReport MakeConsistent(MechanicalSystem& system, State& x,
     }
 
     // 2. Redundancy at the projected positions, and the velocities: v -= C_q^+ (C_q v + C_t).
-    TransposedQr qr(pcq, cq.data(), options.rank_tolerance);
+    TransposedQr qr(pcq, cq.data(), options.rank_tolerance, options.elimination_order);
     report.redundant = qr.Dependent();
     double cq_max = 0;
     for (double e : cq) cq_max = std::max(cq_max, std::abs(e));

@@ -22,6 +22,11 @@ struct ConsistencyOptions {
   // Relative threshold of the rank decision: an R diagonal entry below
   // rank_tolerance * max |R_ii| marks a dependent constraint.
   double rank_tolerance = 1e-9;
+  // The order in which equations are eliminated in the rank decision (a permutation of
+  // 0..nc-1; empty: the natural order). Of a group of dependent equations the ones that
+  // come LATER in this order are flagged redundant, so list first the equations whose
+  // multipliers must be kept (e.g. normalisations of Euler parameters).
+  std::vector<int> elimination_order;
   bool IsValid(std::string* error) const;
 };
 
@@ -39,7 +44,8 @@ struct ConsistencyReport {
 
 // Finds the constraint equations that are linearly dependent on others at (t, q).
 std::vector<int> FindRedundantConstraints(MechanicalSystem& system, double t, const double* q,
-                                          double rank_tolerance);
+                                          double rank_tolerance,
+                                          const std::vector<int>& elimination_order = {});
 
 // A view of `base` with only the constraint equations listed in `kept` (sorted).
 std::unique_ptr<MechanicalSystem> KeepConstraints(MechanicalSystem& base, std::vector<int> kept);

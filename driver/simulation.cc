@@ -244,7 +244,17 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
   sys.InitialState(x.q, x.v);
   const std::vector<double> q0 = x.q, v0 = x.v;
 
-  r.report = dae::MakeConsistent(sys, x, options.consistency);
+  // Rank decision: the Euler-parameter normalisations first, so that a redundancy is
+  // always resolved by setting aside joint equations, never a normalisation (without
+  // it a body's Euler parameters would keep their unit norm only through its joints).
+  dae::ConsistencyOptions consistency = options.consistency;
+  if (consistency.elimination_order.empty()) {
+    for (int e = 0; e < nc; ++e)
+      if (sys.constraint_joint()[e] < 0) consistency.elimination_order.push_back(e);
+    for (int e = 0; e < nc; ++e)
+      if (sys.constraint_joint()[e] >= 0) consistency.elimination_order.push_back(e);
+  }
+  r.report = dae::MakeConsistent(sys, x, consistency);
   if (!r.report.ok) {
     if (r.report.violated.empty() && options.check_determinacy) {
       // Positions could be satisfied: the failure may be an undetermined acceleration.
@@ -295,7 +305,8 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
         UndeterminedBodies(model, *r.kept_system, r.x0, options.singularity_tolerance, &singular);
     if (singular) ThrowUndetermined(model, bodies);
   }
-  dae::ConsistencyReport second = dae::MakeConsistent(*r.kept_system, r.x0, options.consistency);
+  consistency.elimination_order.clear();  // the kept equations are independent
+  dae::ConsistencyReport second = dae::MakeConsistent(*r.kept_system, r.x0, consistency);
   if (!second.ok)
     throw InputError(Prefix(model) + "the model cannot be assembled: " + second.message);
 

@@ -200,6 +200,27 @@ TEST(FindRedundantConstraints, RedundantPendulumFlagsTheSecondCopy) {
   EXPECT_TRUE(FindRedundantConstraints(plain, 0.0, q, 1e-9).empty());
 }
 
+TEST(FindRedundantConstraints, EliminationOrderDecidesWhichCopyGoes) {
+  PendulumSystem sys(1.0, 1.0, 9.81, /*redundant=*/true);
+  const double q[2] = {0.6, -0.8};
+  EXPECT_EQ(FindRedundantConstraints(sys, 0.0, q, 1e-9, {1, 0}), std::vector<int>({0}));
+  EXPECT_EQ(FindRedundantConstraints(sys, 0.0, q, 1e-9, {0, 1}), std::vector<int>({1}));
+  EXPECT_THROW(FindRedundantConstraints(sys, 0.0, q, 1e-9, {0, 0}), std::invalid_argument);
+  EXPECT_THROW(FindRedundantConstraints(sys, 0.0, q, 1e-9, {0}), std::invalid_argument);
+  // MakeConsistent follows the same order, and keeps the multiplier on the kept copy.
+  State x;
+  x.Resize(2, 2);
+  x.q = {0.6, -0.8};
+  x.v = {0.8, 0.6};
+  ConsistencyOptions options;
+  options.elimination_order = {1, 0};
+  const ConsistencyReport report = MakeConsistent(sys, x, options);
+  ASSERT_TRUE(report.ok) << report.message;
+  EXPECT_EQ(report.redundant, std::vector<int>({0}));
+  EXPECT_EQ(x.lambda[0], 0.0);
+  EXPECT_NE(x.lambda[1], 0.0);
+}
+
 TEST(FindRedundantConstraints, LaterEquationOfADependentPairIsFlagged) {
   // Equations 0 and 1 are the same circle (scaled by 3), equation 2 another circle
   // through the point (0.5, sqrt(0.75)): rank 2, and of the pair 0-1 the later one goes.
