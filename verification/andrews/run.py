@@ -25,6 +25,9 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# Where the tables and figures go: this folder, or $MBDAE_VERIFICATION_OUT (the tests).
+OUT = os.environ.get("MBDAE_VERIFICATION_OUT") or HERE
+os.makedirs(OUT, exist_ok=True)
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import andrews_data as ad  # noqa: E402
@@ -157,7 +160,7 @@ def main():
             table.append(("hht", "step %.4g" % h, hht[h]))
         for tol in sorted(ida, reverse=True):
             table.append(("ida", "rtol = atol = %.3g" % tol, ida[tol]))
-        with open(os.path.join(HERE, "work_precision.csv"), "w", newline="") as f:
+        with open(os.path.join(OUT, "work_precision.csv"), "w", newline="") as f:
             wcsv = csv.writer(f)
             wcsv.writerow(["integrator", "setting", "wall_time_s", "process_time_s", "max_rel_error", "scd", "status"])
             for integ, setting, c in table:
@@ -191,11 +194,11 @@ def main():
             ax.grid(True, which="both", alpha=0.3)
             ax.legend()
             fig.tight_layout()
-            fig.savefig(os.path.join(HERE, "work_precision.png"), dpi=120)
+            fig.savefig(os.path.join(OUT, "work_precision.png"), dpi=120)
         except Exception as exc:  # the plot is a by-product; the numbers are in the CSV
             print("plot not written:", exc)
 
-    with open(os.path.join(HERE, "results.md"), "w") as f:
+    with open(os.path.join(OUT, "results.md"), "w") as f:
         f.write("\n".join(md))
     runner.cleanup()
     print("andrews:", "PASS" if ok else "FAIL")

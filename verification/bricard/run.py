@@ -23,6 +23,9 @@ import numpy as np
 import yaml
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# Where the tables and figures go: this folder, or $MBDAE_VERIFICATION_OUT (the tests).
+OUT = os.environ.get("MBDAE_VERIFICATION_OUT") or HERE
+os.makedirs(OUT, exist_ok=True)
 sys.path.insert(0, os.path.dirname(HERE))
 import mbdae_run as mr  # noqa: E402
 
@@ -105,7 +108,7 @@ def main():
         msg = (proc.stderr.strip().splitlines() or ["exit %d" % proc.returncode])[-1]
         msg = msg.split("; the results up to there")[0]
         print("FAIL: the run failed: %s" % msg)
-        with open(os.path.join(HERE, "results.md"), "w") as f:
+        with open(os.path.join(OUT, "results.md"), "w") as f:
             f.write("# Bricard's mechanism (IFToMM A04): verification results\n\n"
                     "Produced by `verification/bricard/run.py`; model `verification/bricard/bricard.yaml`.\n\n"
                     "- Model geometry (before running): joint markers coincide to %.1e m; joint velocity "
@@ -172,7 +175,7 @@ def main():
           "kinetic %.1e, potential variation %.1e of the largest kinetic energy (requirement <= 1e-9: **%s**)"
           % (dk, dp, "PASS" if pass_own else "FAIL"),
           "- Moving joint point J3 at t = 10 s: (%.9f, %.9f, %.9f) m" % tuple(p3[-1]), ""]
-    with open(os.path.join(HERE, "results.md"), "w") as f:
+    with open(os.path.join(OUT, "results.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     try:
         import matplotlib
@@ -187,7 +190,7 @@ def main():
         a2.set_ylabel("E(t) - E(0) [J]")
         a2.set_xlabel("t [s]")
         fig.tight_layout()
-        fig.savefig(os.path.join(HERE, "energy.png"), dpi=110)
+        fig.savefig(os.path.join(OUT, "energy.png"), dpi=110)
     except Exception as exc:
         print("plot not written:", exc)
     runner.cleanup()

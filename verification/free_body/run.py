@@ -15,6 +15,9 @@ import sys
 import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# Where the tables and figures go: this folder, or $MBDAE_VERIFICATION_OUT (the tests).
+OUT = os.environ.get("MBDAE_VERIFICATION_OUT") or HERE
+os.makedirs(OUT, exist_ok=True)
 sys.path.insert(0, os.path.dirname(HERE))
 import mbdae_run as mr  # noqa: E402
 
@@ -80,7 +83,7 @@ def main():
           mr.markdown_table(["alpha", "modified HHT", "classical HHT", "modified / classical"], rows), ""]
     for text, c in checks:
         md.append("- %s: **%s**" % (text, "PASS" if c else "FAIL"))
-    with open(os.path.join(HERE, "results.md"), "w") as f:
+    with open(os.path.join(OUT, "results.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     runner.cleanup()
     print("free body:", "PASS" if ok else "FAIL")

@@ -22,6 +22,9 @@ import sys
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# Where the tables and figures go: this folder, or $MBDAE_VERIFICATION_OUT (the tests).
+OUT = os.environ.get("MBDAE_VERIFICATION_OUT") or HERE
+os.makedirs(OUT, exist_ok=True)
 sys.path.insert(0, os.path.dirname(HERE))
 import mbdae_run as mr  # noqa: E402
 
@@ -149,7 +152,7 @@ def main():
     md.append("\nRequirement: at least four halvings with ratio 4 +- 0.4 (found %d for x(1), %d for "
               "the maximum). **%s**\n" % (good_end, good_max, "PASS" if pass_b else "FAIL"))
 
-    with open(os.path.join(HERE, "results.md"), "w") as f:
+    with open(os.path.join(OUT, "results.md"), "w") as f:
         f.write("\n".join(md))
     runner.cleanup()
     print("pendulum:", "PASS" if ok else "FAIL")
