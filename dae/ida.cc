@@ -339,7 +339,12 @@ class IdaIntegrator final : public Integrator {
 
   const State& state() const override { return state_; }
   const Summary& summary() const override { return summary_; }
-  std::string name() const override { return "ida"; }
+  std::string name() const override {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "IDA (BDF, stabilised index-2 form), rtol = %g, atol = %g",
+                  options_.rtol, options_.atol);
+    return buf;
+  }
 
  private:
   static std::string ToString(double x) {
