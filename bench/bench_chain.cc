@@ -26,6 +26,7 @@
 // bench/report_chain.py turns the JSON output into the table of bench/results/chain.md.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -160,6 +161,21 @@ struct Chain {
     if (!integ->AdvanceTo(kWarmupSteps * kStep))
       throw std::runtime_error("chain " + std::to_string(n) + ": " + integ->summary().message);
     xs = integ->state();
+    // The integrator must have kept the chain together: positions on the constraints.
+    {
+      std::vector<double> con(nc);
+      dae::EvalInput in;
+      in.t = xs.t;
+      in.q = xs.q.data();
+      dae::EvalOutput out;
+      out.constraint = con.data();
+      if (system->Evaluate(in, out) != 0) throw std::runtime_error(system->last_error());
+      double worst = 0;
+      for (double c : con) worst = std::max(worst, std::abs(c));
+      if (!(worst < 1e-9))
+        throw std::runtime_error("chain " + std::to_string(n) + ": |C| = " +
+                                 std::to_string(worst) + " after the warm-up steps");
+    }
 
     // The Newton matrix pattern, as dae/hht.cc builds it.
     for (int m = 0; m < dae::kNumMatrices; ++m)

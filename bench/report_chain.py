@@ -133,6 +133,7 @@ def report(data, runs):
                "| of which Jacobian | refactorisation share (est.) | solve share (est.) "
                "| assembly share (est.) | rest |")
     out.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    eval_shares = []
     for n in sizes:
         try:
             s = runs[("BM_HhtStep", n)]
@@ -151,11 +152,29 @@ def report(data, runs):
         so = s["newton_per_step"] * sol / step
         asb = s["jacobian_per_step"] * asm / step
         other = 1 - ev - fa - so - asb
+        eval_shares.append(ev)
         out.append("| %d | %s | %s | %s | %s | %.0f %% | %.0f %% | %.0f %% | %.0f %% | %.0f %% "
                    "| %.0f %% |" % (
                        n, fmt_time(res), fmt_time(jac), fmt_time(asm), fmt_time(sol),
                        100 * ev, 100 * evj, 100 * fa, 100 * so, 100 * asb, 100 * other))
     out.append("")
+    ratios = [runs[("BM_HhtStep", n)]["us"] / runs[("BM_KluRefactorSolve", n)]["us"]
+              for n in sizes if ("BM_HhtStep", n) in runs and ("BM_KluRefactorSolve", n) in runs]
+    if ratios:
+        out.append("Reading: one HHT step costs %.1f to %.1f KLU refactorisations + solves of "
+                   "its Newton matrix over N = %s. A step does about %s Newton iterations "
+                   "(one residual evaluation and one solve each) and reuses the factorised "
+                   "matrix over several steps (%s refactorisations per step, each with a "
+                   "Jacobian evaluation). %s\n" % (
+                       min(ratios), max(ratios), ", ".join(str(n) for n in sizes),
+                       "/".join("%.1f" % runs[("BM_HhtStep", n)]["newton_per_step"]
+                                for n in sizes),
+                       "/".join("%.2f" % runs[("BM_HhtStep", n)]["factor_per_step"]
+                                for n in sizes),
+                       "Evaluating the multibody system (residuals and Jacobians) takes "
+                       "%.0f to %.0f %% of a step." % (100 * min(eval_shares),
+                                                      100 * max(eval_shares))
+                       if eval_shares else ""))
     noise = [(n, runs[("BM_HhtStep", n)].get("noise_stops_per_step")) for n in sizes
              if ("BM_HhtStep", n) in runs]
     out.append("Newton iterations accepted at the round-off floor per step "

@@ -14,7 +14,10 @@ cmake --build "$build" --target bench_chain -j 2
 mkdir -p "$root/bench/results"
 args=(--benchmark_out="$root/bench/results/chain.json" --benchmark_out_format=json)
 if [ "$reps" -gt 1 ]; then
-  args+=(--benchmark_repetitions="$reps" --benchmark_report_aggregates_only=true)
+  # Repetitions of all benchmarks in random order: a busy spell of the machine then
+  # hits the step and the factorisation alike instead of one of them.
+  args+=(--benchmark_repetitions="$reps" --benchmark_report_aggregates_only=true
+         --benchmark_enable_random_interleaving=true)
 fi
 # Run from the build directory so that the recorded executable name is relative.
 (cd "$build" && ./bench/bench_chain "${args[@]}")
