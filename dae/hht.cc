@@ -463,6 +463,13 @@ class HhtIntegrator final : public Integrator {
         }
         if (it > 0) {
           const double rate = norm / prev_norm;
+          // Contracting iteration: the distance to the solution is about
+          // rate / (1 - rate) * norm (Hairer & Wanner, Solving ODEs II, IV.8, the
+          // stopping rule of RADAU5); stop once that estimate meets the threshold.
+          if (rate < 1.0 && rate / (1.0 - rate) * norm <= NewtonThreshold()) {
+            converged = true;
+            break;
+          }
           // Round-off floor: corrections that stop contracting while already tiny are
           // noise of the linear solve (the 1/(beta h^2) scaling of C amplifies the
           // rounding of C); accept the iterate instead of failing the step.
