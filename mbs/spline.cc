@@ -1,0 +1,1 @@
+#include "mbs/spline.h"
