@@ -120,13 +120,11 @@ class Loader {
     CheckKeys(root, "model",
               {"format", "name", "gravity", "parameters", "splines", "ground", "bodies", "measures",
                "joints", "forces", "simulation"});
-    if (root["splines"]) {
-      Fail(KeyNode(root, "splines"), "model", "'splines' is not supported yet (splines come with a later release)");
-    }
     if (const YAML::Node name = root["name"]) model_.name = String(name, "model", "name");
 
     CollectMeasureNames(root["measures"]);
     LoadParameters(root["parameters"]);
+    LoadSplines(root["splines"]);
     if (const YAML::Node gravity = root["gravity"]) model_.gravity = Vector3(gravity, "model", "gravity");
     LoadGround(root["ground"]);
     LoadBodies(root["bodies"]);
@@ -432,6 +430,125 @@ class Loader {
     };
     for (size_t k = 0; k < n; ++k) visit(static_cast<int>(k));
     for (size_t k = 0; k < n; ++k) model_.parameters[k].value = values_[k];
+  }
+
+  // ---- splines --------------------------------------------------------------------------
+
+  // A non-negative integer (column, line count).
+  int Count(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    const double v = LoadTimeNumber(node, element, key);
+    if (!(v >= 0 && v == std::floor(v) && v <= 1e6)) {
+      Fail(node, element, "'" + key + "' must be a whole number >= 0, got " + Num(v));
+    }
+    return static_cast<int>(v);
+  }
+
+  // splines: {NAME: {x: [...], y: [...], interpolation}, NAME: {file, x_column, y_column,
+  // header_lines, interpolation}}. Default interpolation akima (as FreeDyn), columns 0
+  // and 1, no header lines. Relative data files are relative to the model file.
+  void LoadSplines(const YAML::Node& node) {
+    if (!node) return;
+    if (!node.IsMap()) Fail(node, "model", "'splines' must be a mapping {NAME: {x: [...], y: [...]}}, got " + Kind(node));
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const YAML::Node key = it->first, n = it->second;
+      if (!key.IsScalar()) Fail(key, "model", "a spline name must be a plain name, got " + Kind(key));
+      SplineDef def;
+      def.name = key.Scalar();
+      def.where = At(key);
+      const std::string element = "spline '" + def.name + "'";
+      if (!IsIdentifier(def.name)) {
+        Fail(key, element, "a spline name must be letters, digits and '_', not starting with a digit "
+                           "(it is used in expressions as spline(NAME, x))");
+      }
+      if (model_.find_spline(def.name) >= 0) Fail(key, element, "duplicate spline name");
+      if (!n.IsMap()) {
+        Fail(n, element, "a spline must be a mapping {x: [...], y: [...]} or {file: NAME.csv}, got " + Kind(n));
+      }
+      Interpolation kind = Interpolation::kAkima;
+      if (const YAML::Node i = n["interpolation"]) {
+        kind = Enum<Interpolation>(i, element, "interpolation",
+                                   {{"linear", Interpolation::kLinear}, {"cubic", Interpolation::kCubic},
+                                    {"akima", Interpolation::kAkima}});
+      }
+      std::vector<double> x, y;
+      if (n["file"]) {
+        if (n["x"] || n["y"]) {
+          Fail(KeyNode(n, n["x"] ? "x" : "y"), element, "give either 'file' or the points 'x' and 'y', not both");
+        }
+        CheckKeys(n, element, {"file", "x_column", "y_column", "header_lines", "interpolation"});
+        const YAML::Node f = n["file"];
+        const std::string name = String(f, element, "file");
+        if (name.empty()) Fail(f, element, "'file' must name a data file");
+        std::filesystem::path path(name);
+        if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
+        def.file = path.lexically_normal().string();
+        const int x_column = n["x_column"] ? Count(n["x_column"], element, "x_column") : 0;
+        const int y_column = n["y_column"] ? Count(n["y_column"], element, "y_column") : 1;
+        const int header_lines = n["header_lines"] ? Count(n["header_lines"], element, "header_lines") : 0;
+        if (x_column == y_column) {
+          Fail(n["y_column"] ? n["y_column"] : n["x_column"], element,
+               "x_column and y_column are both " + std::to_string(x_column) + "; they must differ");
+        }
+        std::error_code ignored;
+        if (!std::filesystem::exists(path, ignored)) {
+          Fail(f, element, "data file '" + def.file + "' not found ('" + name + "' is relative to the model file)");
+        }
+        if (std::filesystem::is_directory(path, ignored)) Fail(f, element, "data file '" + def.file + "' is a directory");
+        std::vector<int> lines;
+        try {
+          ReadSplineFile(def.file, header_lines, x_column, y_column, &x, &y, &lines);
+        } catch (const std::exception& e) {
+          Fail(f, element, std::string("in data file: ") + e.what());
+        }
+        if (x.size() < 2) {
+          Fail(f, element, "data file '" + def.file + "' has " + std::to_string(x.size()) + " point" +
+                               (x.size() == 1 ? "" : "s") + " after " + std::to_string(header_lines) +
+                               " header line" + (header_lines == 1 ? "" : "s") + "; a spline needs at least 2");
+        }
+        for (size_t k = 1; k < x.size(); ++k) {
+          if (!(x[k] > x[k - 1])) {
+            Fail(f, element, "in data file: " + def.file + ":" + std::to_string(lines[k]) + ": x = " + Num(x[k]) +
+                                 " is not greater than x = " + Num(x[k - 1]) + " on line " +
+                                 std::to_string(lines[k - 1]) + "; x must be strictly increasing");
+          }
+        }
+      } else {
+        CheckKeys(n, element, {"x", "y", "interpolation"});
+        if (!n["x"] && !n["y"]) {
+          Fail(n, element, "missing the points: give 'x' and 'y' (lists of numbers) or 'file'");
+        }
+        const YAML::Node xs = Required(n, element, "x"), ys = Required(n, element, "y");
+        auto list = [&](const YAML::Node& v, const char* key) {
+          if (!v.IsSequence()) Fail(v, element, std::string("'") + key + "' must be a list of numbers, got " + Kind(v));
+          std::vector<double> out;
+          for (size_t k = 0; k < v.size(); ++k) {
+            out.push_back(LoadTimeNumber(v[k], element, std::string(key) + "[" + std::to_string(k) + "]"));
+          }
+          return out;
+        };
+        x = list(xs, "x");
+        y = list(ys, "y");
+        if (x.size() != y.size()) {
+          Fail(ys, element, "'x' has " + std::to_string(x.size()) + " entries but 'y' has " + std::to_string(y.size()) +
+                                "; they must have the same number");
+        }
+        if (x.size() < 2) {
+          Fail(xs, element, "a spline needs at least 2 points, got " + std::to_string(x.size()));
+        }
+        for (size_t k = 1; k < x.size(); ++k) {
+          if (!(x[k] > x[k - 1])) {
+            Fail(xs[k], element, "'x' must be strictly increasing: x[" + std::to_string(k) + "] = " + Num(x[k]) +
+                                     " is not greater than x[" + std::to_string(k - 1) + "] = " + Num(x[k - 1]));
+          }
+        }
+      }
+      try {
+        def.spline = Spline(std::move(x), std::move(y), kind);
+      } catch (const std::invalid_argument& e) {  // the checks above should have caught it
+        Fail(n, element, e.what());
+      }
+      model_.splines.push_back(std::move(def));
+    }
   }
 
   // ---- markers, ground, bodies ---------------------------------------------------

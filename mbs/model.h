@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "mbs/expression.h"
+#include "mbs/spline.h"
 
 namespace mbdae::mbs {
 
@@ -95,6 +96,16 @@ struct Force {
   SourceLocation where;
 };
 
+// A spline of the model file (`splines:`), by name; expressions call it as
+// spline(NAME, x). Its points may be replaced between runs (spline.SetPoints) without
+// reloading the model.
+struct SplineDef {
+  std::string name;
+  Spline spline;
+  std::string file;  // the data file as read (resolved against the model file), "" if inline
+  SourceLocation where;
+};
+
 enum class IntegratorKind { kHht, kIda };
 
 struct SimulationSettings {
@@ -115,6 +126,7 @@ struct Model {
   std::string name;
   Vec3 gravity = Vec3::Zero();
   std::vector<Parameter> parameters;
+  std::vector<SplineDef> splines;  // in file order
   std::vector<Marker> markers;   // ground markers first (ground.O is index 0), then bodies'
   std::vector<Body> bodies;
   std::vector<Measure> measures;
@@ -130,6 +142,7 @@ struct Model {
   int find_marker(const std::string& full_name) const;
   int find_body(const std::string& name) const;
   int find_measure(const std::string& name) const;
+  int find_spline(const std::string& name) const;
 
   std::vector<double> parameter_values() const;
 };

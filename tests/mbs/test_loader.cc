@@ -282,7 +282,7 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 2\n"), "m.yaml:1:9: model: unsupported format 2"));
   EXPECT_TRUE(Contains(LoadError("- 1\n- 2\n"), "the top level must be a mapping"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nformat: 1\n"), "m.yaml:2:1: model: key 'format' is given twice"));
-  EXPECT_TRUE(Contains(LoadError("format: 1\nsplines: {}\n"), "m.yaml:2:1: model: 'splines' is not supported yet"));
+  EXPECT_EQ(LoadError("format: 1\nsplines: {}\n"), "");  // an empty splines block loads
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies:\n  - {name: b, geometry: {shape: mesh, file: a.stl}}\n"),
                        "body 'b': geometry shape 'mesh' is not supported yet"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: bushing, i: b.cm}\n"),
@@ -389,6 +389,149 @@ TEST(Loader, MalformedFiles) {
   EXPECT_EQ(base.bodies.size(), 2u);
   EXPECT_EQ(base.joints.size(), 2u);
   EXPECT_DOUBLE_EQ(base.markers[base.find_marker("crank.A")].position.y(), 0.05);
+}
+
+// ---- splines ------------------------------------------------------------------------------
+
+TEST(LoaderSplines, InlineAndFromFiles) {
+  const Model m = LoadModel(ModelPath("splines.yaml"));
+  ASSERT_EQ(m.splines.size(), 5u);
+  EXPECT_EQ(m.find_spline("drive"), 0);
+  EXPECT_EQ(m.find_spline("profile"), 4);
+  EXPECT_EQ(m.find_spline("nope"), -1);
+
+  // Inline cubic through (0,0), (1,1), (2,0): 0.6875 at 0.5 (see test_spline.cc).
+  const SplineDef& drive = m.splines[0];
+  EXPECT_EQ(drive.name, "drive");
+  EXPECT_EQ(drive.spline.kind(), Interpolation::kCubic);
+  EXPECT_EQ(drive.file, "");
+  EXPECT_EQ(drive.where.line, 8);
+  EXPECT_NEAR(drive.spline.Evaluate(0.5), 0.6875, 1e-15);
+
+  // Entries may be load-time expressions of the parameters (a = 2, top = 6).
+  const Spline& steps = m.splines[1].spline;
+  EXPECT_EQ(steps.kind(), Interpolation::kLinear);
+  EXPECT_EQ(steps.x(), (std::vector<double>{0, 1, 2, 3}));
+  EXPECT_EQ(steps.y(), (std::vector<double>{0, 6, 0, -6}));
+  EXPECT_NEAR(steps.Evaluate(0.5), 3, 1e-15);
+
+  // Default interpolation: akima (Akima slopes by hand in test_spline.cc: -0.5 at 0).
+  const Spline& smooth = m.splines[2].spline;
+  EXPECT_EQ(smooth.kind(), Interpolation::kAkima);
+  double d1;
+  smooth.Evaluate(0, &d1);
+  EXPECT_NEAR(d1, -0.5, 1e-15);
+
+  // CSV, relative to the model file, header line, columns 0 and 2, comment and blank line.
+  const SplineDef& road = m.splines[3];
+  EXPECT_EQ(road.spline.x(), (std::vector<double>{0, 1, 2.5}));
+  EXPECT_EQ(road.spline.y(), (std::vector<double>{0, -0.1, 0.05}));
+  EXPECT_TRUE(Contains(road.file, "models/data/road.csv")) << road.file;
+  EXPECT_NEAR(road.spline.Evaluate(1.75), -0.025, 1e-15);
+
+  // Whitespace file, default columns 0 and 1, no header lines (the first line is a comment).
+  const Spline& profile = m.splines[4].spline;
+  EXPECT_EQ(profile.kind(), Interpolation::kAkima);
+  EXPECT_EQ(profile.x(), (std::vector<double>{0, 1, 2, 3, 4}));
+  EXPECT_NEAR(profile.Evaluate(1.5), 0.5625, 1e-15);  // same data as `smooth`, Akima by hand
+  EXPECT_NEAR(profile.Evaluate(1.5), smooth.Evaluate(1.5), 1e-15);
+}
+
+TEST(LoaderSplines, ParameterOverridesReachThePoints) {
+  LoadOptions options;
+  options.parameter_overrides["a"] = 1;  // x = [0, a/2, a, 3], y = [0, 3a, 0, -3a]
+  const Model m = LoadModel(ModelPath("splines.yaml"), options);
+  EXPECT_EQ(m.splines[1].spline.x(), (std::vector<double>{0, 0.5, 1, 3}));
+  EXPECT_EQ(m.splines[1].spline.y(), (std::vector<double>{0, 3, 0, -3}));
+  // An override that makes x decrease is reported at the entry.
+  options.parameter_overrides["a"] = 4;
+  try {
+    LoadModel(ModelPath("splines.yaml"), options);
+    ADD_FAILURE() << "loaded";
+  } catch (const ModelError& e) {
+    EXPECT_TRUE(Contains(e.what(), "splines.yaml:10:22: spline 'steps': 'x' must be strictly increasing: x[3] = 3 "
+                                   "is not greater than x[2] = 4")) << e.what();
+  }
+}
+
+TEST(LoaderSplines, PointsCanBeReplacedAfterLoading) {
+  Model m = LoadModel(ModelPath("splines.yaml"));
+  Spline& drive = m.splines[m.find_spline("drive")].spline;
+  drive.SetPoints({0, 1, 2}, {0, 2, 0});
+  EXPECT_NEAR(m.splines[0].spline.Evaluate(0.5), 1.375, 1e-15);
+}
+
+TEST(LoaderSplines, Mistakes) {
+  auto err = [](const std::string& splines) { return LoadError("format: 1\nparameters: {p: 1}\nsplines:\n" + splines); };
+  std::string e;
+  e = err("  s: {x: [0, 1], y: [0, 1], interpolation: cubik}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:44: spline 's': unknown interpolation 'cubik'; did you mean 'cubic'?")) << e;
+  e = err("  s: {x: [0, 1, 1], y: [0, 1, 2]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:17: spline 's': 'x' must be strictly increasing: x[2] = 1 is not greater than x[1] = 1")) << e;
+  e = err("  s: {x: [0, 1, 2], y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:24: spline 's': 'x' has 3 entries but 'y' has 2")) << e;
+  e = err("  s: {x: [0], y: [0]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:10: spline 's': a spline needs at least 2 points, got 1")) << e;
+  e = err("  s: {x: [0, q], y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:14: spline 's': 'x[1]': in expression 'q': unknown name 'q'")) << e;
+  e = err("  s: {x: [0, \"1/0\"], y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "spline 's': 'x[1]' evaluates to inf")) << e;
+  e = err("  s: {x: 3, y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:10: spline 's': 'x' must be a list of numbers, got '3'")) << e;
+  e = err("  s: {x: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "spline 's': missing required key 'y'")) << e;
+  e = err("  s: {interpolation: linear}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:6: spline 's': missing the points: give 'x' and 'y' (lists of numbers) or 'file'")) << e;
+  e = err("  s: {x: [0, 1], y: [0, 1], colour: red}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:29: spline 's': unknown key 'colour'")) << e;
+  e = err("  s: {file: a.csv, x: [0, 1], y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "spline 's': give either 'file' or the points 'x' and 'y', not both")) << e;
+  e = err("  s: {file: a.csv, x_column: 1.5}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:30: spline 's': 'x_column' must be a whole number >= 0, got 1.5")) << e;
+  e = err("  s: {file: a.csv, header_lines: -1}\n");
+  EXPECT_TRUE(Contains(e, "spline 's': 'header_lines' must be a whole number >= 0, got -1")) << e;
+  e = err("  s: {file: a.csv, x_column: 1}\n");
+  EXPECT_TRUE(Contains(e, "spline 's': x_column and y_column are both 1; they must differ")) << e;
+  e = err("  s: {file: no_such_file.csv}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:13: spline 's': data file 'no_such_file.csv' not found")) << e;
+  e = err("  s: [0, 1]\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:6: spline 's': a spline must be a mapping")) << e;
+  e = err("  2s: {x: [0, 1], y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:3: spline '2s': a spline name must be letters, digits and '_'")) << e;
+  e = err("  s: {x: [0, 1], y: [0, 1]}\n  s: {x: [0, 1], y: [0, 1]}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:5:3: spline 's': duplicate spline name")) << e;
+  e = LoadError("format: 1\nsplines: [1, 2]\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:2:10: model: 'splines' must be a mapping")) << e;
+}
+
+// Data-file mistakes name the model file's line and the data file's line.
+TEST(LoaderSplines, DataFileMistakes) {
+  const std::string dir = ::testing::TempDir();
+  auto write = [&](const std::string& name, const std::string& text) { std::ofstream(dir + name) << text; };
+  write("spline_model.yaml", "format: 1\nsplines:\n  road: {file: spline_data.csv, header_lines: 1}\n");
+  auto error = [&] {
+    try {
+      LoadModel(dir + "spline_model.yaml");
+    } catch (const ModelError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  write("spline_data.csv", "x,y\n0,0\n1,1\n");
+  EXPECT_EQ(error(), "");
+  write("spline_data.csv", "x,y\n0,0\n1,1e\n");
+  std::string e = error();
+  EXPECT_TRUE(Contains(e, "spline_model.yaml:3:16: spline 'road': in data file: " + dir +
+                              "spline_data.csv:3: column 1 is '1e', not a number")) << e;
+  write("spline_data.csv", "x,y\n0,0\n2\n");
+  e = error();
+  EXPECT_TRUE(Contains(e, "spline_data.csv:3: column 1 (0-based) is missing: the line has 1 column")) << e;
+  write("spline_data.csv", "x,y\n0,0\n\n# later\n1,0\n1,1\n");
+  e = error();
+  EXPECT_TRUE(Contains(e, "spline_data.csv:6: x = 1 is not greater than x = 1 on line 5; x must be strictly increasing")) << e;
+  write("spline_data.csv", "x,y\n0,0\n");
+  e = error();
+  EXPECT_TRUE(Contains(e, "spline_data.csv' has 1 point after 1 header line; a spline needs at least 2")) << e;
 }
 
 }  // namespace
