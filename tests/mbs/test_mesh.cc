@@ -399,6 +399,26 @@ TEST(MeshMass, IcoSphereConvergesToSphereAtSecondOrder) {
   EXPECT_LT(previous_mass_error, 1e-3);
 }
 
+// A shell with a cavity: the outer icosphere and the inner one turned inside out, in one
+// mesh. The divergence theorem subtracts the cavity: mass and inertia are the differences.
+TEST(MeshMass, HollowSphereSubtractsTheCavity) {
+  const TriangleMesh outer = IcoSphere(1.0, 3);
+  TriangleMesh inner = IcoSphere(0.6, 2);
+  FlipOrientation(&inner);
+  TriangleMesh hollow = outer;
+  const int offset = static_cast<int>(outer.vertices.size());
+  hollow.vertices.insert(hollow.vertices.end(), inner.vertices.begin(), inner.vertices.end());
+  for (const auto& t : inner.triangles) {
+    hollow.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  }
+  FlipOrientation(&inner);
+  const MassProperties po = MeshMassProperties(outer, 2.0, 1.0, nullptr);
+  const MassProperties pi = MeshMassProperties(inner, 2.0, 1.0, nullptr);
+  const MassProperties ph = MeshMassProperties(hollow, 2.0, 1.0, nullptr);
+  EXPECT_NEAR(ph.mass, po.mass - pi.mass, 1e-13 * po.mass);
+  EXPECT_LT(InertiaError(ph.inertia, po.inertia - pi.inertia), 1e-12);
+}
+
 TEST(MeshMass, IcoSphereThroughStlAndObjFiles) {
   const TriangleMesh mesh = IcoSphere(0.5, 3);
   const MassProperties direct = MeshMassProperties(mesh, 1000, 1.0, nullptr);
