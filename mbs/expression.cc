@@ -1,4 +1,6 @@
-// Expression parser and evaluator: recursive descent into a postfix program.
+// Expression parser and evaluators: recursive descent into a postfix program, then three
+// stack machines over it (values, values with first derivatives, second-order Taylor
+// series in t).
 //
 // Grammar (lowest to highest precedence):
 //   expr    := term (('+' | '-') term)*
@@ -6,28 +8,48 @@
 //   unary   := ('-' | '+') unary | power
 //   power   := primary ('^' unary)?        right-associative, binds tighter than unary
 //                                           minus on its left: -2^2 = -4, 2^-1 = 0.5
-//   primary := NUMBER | NAME | NAME '(' expr (',' expr)* ')' | '(' expr ')'
+//   primary := NUMBER | NAME | NAME '(' expr (',' expr)* ')' | 'spline' '(' NAME ',' expr ')'
+//            | '(' expr ')'
+//
+// Derivatives: every operation is a function c = f(a, b, ...) of the values on the stack;
+// the gradient evaluator carries with each value its derivatives with respect to the
+// expression's arguments (forward mode: dc = f_a da + f_b db + ...), the Taylor evaluator
+// carries (c, c', c'') in t with c'' = sum_i f_i a_i'' + sum_ij f_ij a_i' a_j' (the chain
+// rule to second order; e.g. Griewank & Walther, "Evaluating Derivatives", 2nd ed., ch. 13).
+// A derivative of an operand that is exactly zero contributes exactly zero, even where
+// f' is infinite (sqrt at 0, pow at 0): a value that does not depend on an argument
+// gives a result that does not depend on it.
 #include "mbs/expression.h"
 
+#include <algorithm>
 #include <array>
 #include <cassert>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <iomanip>
+#include <limits>
 #include <sstream>
+#include <stdexcept>
 #include <string_view>
+
+#include "mbs/spline.h"
 
 namespace mbdae::mbs {
 
 namespace {
 
-// Deepest evaluation stack an expression may need; Evaluate uses a fixed local array.
+// Deepest evaluation stack an expression may need; the evaluators use fixed local arrays.
 constexpr int kMaxStack = 64;
+constexpr int kMaxArgs = kMaxExpressionArguments;
 
 enum Code : int {
+  // leaves
   kConst,
   kParam,
+  kMeasure,
+  kTime,
+  // operators
   kAdd,
   kSub,
   kMul,
@@ -49,6 +71,8 @@ enum Code : int {
   kSqrt,
   kAbs,
   kSign,
+  kPowConst,  // x ^ value, the exponent a literal (folded at parse time)
+  kSpline,    // spline `index` at x
   // two arguments
   kAtan2,
   kMin,
@@ -57,6 +81,16 @@ enum Code : int {
   // five arguments
   kStep,
 };
+
+int Arity(int code) {
+  switch (code) {
+    case kConst: case kParam: case kMeasure: case kTime: return 0;
+    case kAdd: case kSub: case kMul: case kDiv: case kPow: case kAtan2: case kMin: case kMax: case kPowFn:
+      return 2;
+    case kStep: return 5;
+    default: return 1;
+  }
+}
 
 struct Function {
   const char* name;
@@ -78,31 +112,133 @@ const Function* FindFunction(std::string_view name) {
   return nullptr;
 }
 
-constexpr const char* kNotYet =
-    " is not supported yet (time- and state-dependent expressions come with a later release)";
+double Sign(double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); }
+
+// ---------------------------------------------------------------------------------------
+// Local derivatives of each operation.
+
+// Value of a one-argument function at x, its first derivative *f1 and, when kSecond, its
+// second derivative *f2. Conventions at non-smooth points: abs' = sign (0 at 0), sign' = 0.
+template <bool kSecond>
+double Unary(int code, double x, double exponent, double* f1, double* f2) {
+  double f = 0, d1 = 0, d2 = 0;
+  switch (code) {
+    case kNeg: f = -x; d1 = -1; break;
+    case kSin: f = std::sin(x); d1 = std::cos(x); d2 = -f; break;
+    case kCos: f = std::cos(x); d1 = -std::sin(x); d2 = -f; break;
+    case kTan: f = std::tan(x); d1 = 1 + f * f; d2 = 2 * f * d1; break;
+    case kAsin: f = std::asin(x); d1 = 1 / std::sqrt(1 - x * x); d2 = x * d1 * d1 * d1; break;
+    case kAcos: f = std::acos(x); d1 = -1 / std::sqrt(1 - x * x); d2 = x * d1 * d1 * d1; break;
+    case kAtan: f = std::atan(x); d1 = 1 / (1 + x * x); d2 = -2 * x * d1 * d1; break;
+    case kSinh: f = std::sinh(x); d1 = std::cosh(x); d2 = f; break;
+    case kCosh: f = std::cosh(x); d1 = std::sinh(x); d2 = f; break;
+    case kTanh: f = std::tanh(x); d1 = 1 - f * f; d2 = -2 * f * d1; break;
+    case kExp: f = std::exp(x); d1 = f; d2 = f; break;
+    case kLog: f = std::log(x); d1 = 1 / x; d2 = -d1 * d1; break;
+    case kSqrt: f = std::sqrt(x); d1 = 0.5 / f; d2 = -0.5 * d1 / x; break;
+    case kAbs: f = std::abs(x); d1 = Sign(x); break;
+    case kSign: f = Sign(x); break;
+    case kPowConst: {
+      const double c = exponent;
+      f = std::pow(x, c);
+      if (c != 0) d1 = c * std::pow(x, c - 1);
+      if (kSecond && c != 0 && c != 1) d2 = c * (c - 1) * std::pow(x, c - 2);
+      break;
+    }
+    default: assert(false && "not a one-argument operation");
+  }
+  *f1 = d1;
+  if constexpr (kSecond) *f2 = d2;
+  return f;
+}
+
+// Partial derivatives of a ^ b: *fa = b a^(b-1) (0 when b = 0), *fb = a^b log a (0 when
+// a = 0: the limit from a > 0 for b > 0; NaN for a < 0, where a^b is not differentiable
+// in b).
+double PowPartials(double a, double b, double* fa, double* fb) {
+  const double c = std::pow(a, b);
+  *fa = b == 0 ? 0.0 : b * std::pow(a, b - 1);
+  *fb = a > 0 ? c * std::log(a) : (a == 0 ? 0.0 : std::numeric_limits<double>::quiet_NaN());
+  return c;
+}
 
 // Cubic smooth step: h0 for x <= x0, h1 for x >= x1, h0 + (h1 - h0) s^2 (3 - 2 s) between,
-// s = (x - x0) / (x1 - x0).
-double SmoothStep(double x, double x0, double h0, double x1, double h1) {
-  if (x <= x0) return h0;
-  if (x >= x1) return h1;
-  const double s = (x - x0) / (x1 - x0);
+// s = (x - x0) / (x1 - x0). With p non-null, also the partials with respect to
+// (x, x0, h0, x1, h1); at x = x0 and x = x1 (and for x1 <= x0) the constant branch's.
+double SmoothStep(double x, double x0, double h0, double x1, double h1, double* p = nullptr) {
+  if (x <= x0 || x >= x1) {
+    const bool low = x <= x0;
+    if (p != nullptr) {
+      p[0] = p[1] = p[3] = 0;
+      p[2] = low ? 1 : 0;
+      p[4] = low ? 0 : 1;
+    }
+    return low ? h0 : h1;
+  }
+  const double L = x1 - x0;
+  const double s = (x - x0) / L;
+  if (p != nullptr) {
+    const double S = s * s * (3.0 - 2.0 * s);
+    const double dS = 6.0 * s * (1.0 - s) * (h1 - h0) / L;  // d/dx
+    p[0] = dS;
+    p[1] = dS * (s - 1.0);  // ds/dx0 = (s - 1) / L
+    p[2] = 1.0 - S;
+    p[3] = -dS * s;         // ds/dx1 = -s / L
+    p[4] = S;
+  }
   return h0 + (h1 - h0) * s * s * (3.0 - 2.0 * s);
 }
 
-double Sign(double x) { return x > 0 ? 1.0 : (x < 0 ? -1.0 : 0.0); }
+// ---------------------------------------------------------------------------------------
+// Value evaluation of a program (also used to fold literal subexpressions at parse time).
+
+// Second-order Taylor numbers in t: value, first and second derivative.
+struct T2 {
+  double v, d1, d2;
+};
+
+T2 operator+(const T2& a, const T2& b) { return {a.v + b.v, a.d1 + b.d1, a.d2 + b.d2}; }
+T2 operator-(const T2& a, const T2& b) { return {a.v - b.v, a.d1 - b.d1, a.d2 - b.d2}; }
+T2 operator*(const T2& a, const T2& b) {
+  return {a.v * b.v, a.d1 * b.v + a.v * b.d1, a.d2 * b.v + 2 * a.d1 * b.d1 + a.v * b.d2};
+}
+T2 operator/(const T2& a, const T2& b) {
+  const double c = a.v / b.v;
+  const double c1 = (a.d1 - c * b.d1) / b.v;
+  return {c, c1, (a.d2 - 2 * c1 * b.d1 - c * b.d2) / b.v};
+}
+T2 Lit(double x) { return {x, 0, 0}; }
+bool IsConstantInT(const T2& a) { return a.d1 == 0 && a.d2 == 0; }
+
+// c = f(a) with f' = f1, f'' = f2: c' = f1 a', c'' = f2 a'^2 + f1 a''.
+T2 Chain(double f, double f1, double f2, const T2& a) {
+  if (IsConstantInT(a)) return {f, 0, 0};
+  return {f, f1 * a.d1, f2 * a.d1 * a.d1 + f1 * a.d2};
+}
+
+// dst = fa * dst, skipping exact zeros (see the file comment).
+inline void Scale(double* dst, double fa, int n) {
+  for (int j = 0; j < n; ++j) dst[j] = dst[j] != 0 ? fa * dst[j] : 0.0;
+}
+// dst = fa * dst + fb * src, skipping exact zeros.
+inline void Combine(double* dst, double fa, const double* src, double fb, int n) {
+  for (int j = 0; j < n; ++j) {
+    dst[j] = (dst[j] != 0 ? fa * dst[j] : 0.0) + (src[j] != 0 ? fb * src[j] : 0.0);
+  }
+}
 
 }  // namespace
 
 // The parser proper; builds the program of an Expression.
 class ExpressionParser {
  public:
+  using Op = Expression::Op;
+
   ExpressionParser(const std::string& text, const SymbolTable& symbols)
       : text_(text), symbols_(symbols) {}
 
-  void Run(std::vector<std::pair<int, double>>* program, std::vector<int>* used, int* max_stack) {
-    program_ = program;
-    used_ = used;
+  void Run(Expression* e) {
+    e_ = e;
     SkipSpace();
     if (pos_ >= text_.size()) throw ExpressionError("empty expression", 1);
     ParseExpr();
@@ -113,10 +249,24 @@ class ExpressionParser {
                             Column());
     }
     assert(depth_ == 1);
-    *max_stack = max_depth_;
+    e->max_stack_ = max_depth_;
+    // Derivative slots: t first, then the measures, then the parameters, in order of use.
+    const int nt = e->uses_time_ ? 1 : 0;
+    const int nm = static_cast<int>(e->measures_used_.size());
+    e->num_slots_ = nt + nm + static_cast<int>(e->parameters_used_.size());
+    assert(e->num_slots_ <= kMaxArgs);
+    for (Op& op : e->program_) {
+      if (op.code == kTime) op.slot = 0;
+      if (op.code == kMeasure) op.slot = nt + Position(e->measures_used_, op.index);
+      if (op.code == kParam) op.slot = nt + nm + Position(e->parameters_used_, op.index);
+    }
   }
 
  private:
+  static int Position(const std::vector<int>& list, int index) {
+    return static_cast<int>(std::find(list.begin(), list.end(), index) - list.begin());
+  }
+
   int Column() const { return static_cast<int>(pos_) + 1; }
 
   void SkipSpace() {
@@ -141,9 +291,28 @@ class ExpressionParser {
     return std::string("'") + text_[pos_] + "'";
   }
 
-  // Stack effect bookkeeping: `pops` operands consumed, one result pushed.
-  void Emit(int code, double value, int pops, int column) {
-    program_->emplace_back(code, value);
+  // Appends an operation; `pops` operands consumed, one result pushed. An operation whose
+  // operands are all literals is folded into a literal (splines are never folded: their
+  // points may change between runs); a power with a literal exponent becomes kPowConst.
+  void Emit(int code, double value, int pops, int column, int index = -1) {
+    std::vector<Op>& program = e_->program_;
+    const int n = static_cast<int>(program.size());
+    bool literal_operands = pops > 0 && code != kSpline && n >= pops;
+    for (int k = n - pops; literal_operands && k < n; ++k) literal_operands = program[k].code == kConst;
+    if (literal_operands) {
+      Op ops[6];
+      for (int k = 0; k < pops; ++k) ops[k] = program[n - pops + k];
+      ops[pops] = Op{code, index, -1, value};
+      const double folded = Expression::Run(ops, pops + 1, ExpressionInputs{});
+      program.resize(n - pops);
+      program.push_back(Op{kConst, -1, -1, folded});
+    } else if ((code == kPow || code == kPowFn) && program.back().code == kConst) {
+      const double exponent = program.back().value;
+      program.pop_back();
+      program.push_back(Op{kPowConst, -1, -1, exponent});
+    } else {
+      program.push_back(Op{code, index, -1, value});
+    }
     depth_ += 1 - pops;
     if (depth_ > max_depth_) max_depth_ = depth_;
     if (max_depth_ > kMaxStack) Fail("expression is nested too deeply", column);
@@ -223,12 +392,15 @@ class ExpressionParser {
       ParseNumber();
       return;
     }
-    if (std::isalpha(static_cast<unsigned char>(c)) || c == '_') {
+    if (IsNameStart(c)) {
       ParseName();
       return;
     }
     Fail("expected a number, a name or '(' but found " + Here(), column);
   }
+
+  static bool IsNameStart(char c) { return std::isalpha(static_cast<unsigned char>(c)) || c == '_'; }
+  static bool IsNameChar(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }
 
   void ParseNumber() {
     const size_t start = pos_;
@@ -249,8 +421,7 @@ class ExpressionParser {
       if (pos_ < text_.size() && (text_[pos_] == '+' || text_[pos_] == '-')) ++pos_;
       if (digits() == 0) Fail("malformed number (exponent has no digits)", column);
     }
-    if (pos_ < text_.size() &&
-        (std::isalpha(static_cast<unsigned char>(text_[pos_])) || text_[pos_] == '_')) {
+    if (pos_ < text_.size() && IsNameStart(text_[pos_])) {
       Fail("malformed number (a name cannot start with a digit)", column);
     }
     const std::string literal = text_.substr(start, pos_ - start);
@@ -259,27 +430,85 @@ class ExpressionParser {
     Emit(kConst, value, 0, column);
   }
 
+  // A name that exists but may not be used in this value.
+  [[noreturn]] void Refuse(const std::string& what, int column) {
+    throw ExpressionError(what + " at column " + std::to_string(column) + " cannot be used here: " +
+                              (symbols_.allow_time ? "this value may depend on time only"
+                                                   : "this value is evaluated once at load time"),
+                          column);
+  }
+
+  // Records a use of an argument (t, measure `index` or parameter `index`) and checks the
+  // number of distinct arguments.
+  void UseArgument(std::vector<int>* used, int index, int column) {
+    if (used != nullptr && std::find(used->begin(), used->end(), index) != used->end()) return;
+    if (used == nullptr && e_->uses_time_) return;
+    const int count = (e_->uses_time_ ? 1 : 0) + static_cast<int>(e_->measures_used_.size() +
+                                                                  e_->parameters_used_.size());
+    if (count + 1 > kMaxArgs) {
+      Fail("too many distinct arguments (t, measures and parameters): at most " +
+               std::to_string(kMaxArgs) + " per expression",
+           column);
+    }
+    if (used == nullptr) {
+      e_->uses_time_ = true;
+    } else {
+      used->push_back(index);
+    }
+  }
+
+  static int Find(const std::vector<std::string>& names, const std::string& name) {
+    for (size_t i = 0; i < names.size(); ++i)
+      if (names[i] == name) return static_cast<int>(i);
+    return -1;
+  }
+
+  // spline(NAME, x), after the name 'spline' and with pos_ at '('.
+  void ParseSplineCall(int column) {
+    if (!symbols_.allow_time) {
+      Refuse("spline()", column);
+    }
+    ++pos_;  // '('
+    SkipSpace();
+    const int name_column = Column();
+    const size_t start = pos_;
+    if (pos_ < text_.size() && IsNameStart(text_[pos_])) {
+      while (pos_ < text_.size() && IsNameChar(text_[pos_])) ++pos_;
+    }
+    if (pos_ == start) Fail("spline() needs a spline name first: spline(NAME, x), found " + Here(), name_column);
+    const std::string name = text_.substr(start, pos_ - start);
+    const int index = Find(symbols_.splines, name);
+    if (index < 0) Fail("unknown spline '" + name + "'", name_column);
+    if (!Accept(',')) Fail("expected ',' after the spline name but found " + Here(), Column());
+    ParseExpr();
+    if (!Accept(')')) {
+      Fail("spline() takes a spline name and one argument: expected ')' but found " + Here(), Column());
+    }
+    if (std::find(e_->splines_used_.begin(), e_->splines_used_.end(), index) == e_->splines_used_.end()) {
+      e_->splines_used_.push_back(index);
+    }
+    Emit(kSpline, 0, 1, column, index);
+  }
+
   void ParseName() {
     const size_t start = pos_;
     const int column = Column();
-    while (pos_ < text_.size() &&
-           (std::isalnum(static_cast<unsigned char>(text_[pos_])) || text_[pos_] == '_')) {
-      ++pos_;
-    }
+    while (pos_ < text_.size() && IsNameChar(text_[pos_])) ++pos_;
     const std::string name = text_.substr(start, pos_ - start);
     SkipSpace();
     const bool call = pos_ < text_.size() && text_[pos_] == '(';
 
-    if (name == "t" || name == "spline") {
-      throw ExpressionError("'" + name + "' at column " + std::to_string(column) + kNotYet, column);
-    }
-    for (const std::string& r : symbols_.reserved) {
-      if (r == name) {
-        throw ExpressionError("measure '" + name + "' at column " + std::to_string(column) + kNotYet,
-                              column);
-      }
+    if (name == "t" && !call) {
+      if (!symbols_.allow_time) Refuse("'t'", column);
+      UseArgument(nullptr, 0, column);
+      Emit(kTime, 0, 0, column);
+      return;
     }
     if (call) {
+      if (name == "spline") {
+        ParseSplineCall(column);
+        return;
+      }
       const Function* f = FindFunction(name);
       if (f == nullptr) Fail("unknown function '" + name + "'", column);
       ++pos_;  // '('
@@ -305,71 +534,58 @@ class ExpressionParser {
       Emit(kConst, M_PI, 0, column);
       return;
     }
-    for (size_t i = 0; i < symbols_.parameters.size(); ++i) {
-      if (symbols_.parameters[i] == name) {
-        Emit(kParam, static_cast<double>(i), 0, column);
-        bool seen = false;
-        for (int u : *used_) seen = seen || u == static_cast<int>(i);
-        if (!seen) used_->push_back(static_cast<int>(i));
-        return;
-      }
+    if (const int i = Find(symbols_.measures, name); i >= 0) {
+      UseArgument(&e_->measures_used_, i, column);
+      Emit(kMeasure, 0, 0, column, i);
+      return;
     }
-    if (FindFunction(name) != nullptr) Fail("function '" + name + "' needs arguments in parentheses", column);
+    if (const int i = Find(symbols_.parameters, name); i >= 0) {
+      UseArgument(&e_->parameters_used_, i, column);
+      Emit(kParam, 0, 0, column, i);
+      return;
+    }
+    if (Find(symbols_.reserved, name) >= 0) {
+      Refuse("measure '" + name + "'", column);
+    }
+    if (FindFunction(name) != nullptr || name == "spline") {
+      Fail("function '" + name + "' needs arguments in parentheses", column);
+    }
     Fail("unknown name '" + name + "'", column);
   }
 
   const std::string& text_;
   const SymbolTable& symbols_;
+  Expression* e_ = nullptr;
   size_t pos_ = 0;
   int depth_ = 0;
   int max_depth_ = 0;
   int nesting_ = 0;
-  std::vector<std::pair<int, double>>* program_ = nullptr;
-  std::vector<int>* used_ = nullptr;
 };
 
-Expression Expression::Constant(double value) {
-  Expression e;
-  e.program_.push_back({kConst, value});
-  std::ostringstream text;
-  text << std::setprecision(17) << value;
-  e.text_ = text.str();
-  e.max_stack_ = 1;
-  return e;
-}
-
-Expression Expression::Parse(const std::string& text, const SymbolTable& symbols) {
-  std::vector<std::pair<int, double>> program;
-  Expression e;
-  int max_stack = 1;
-  ExpressionParser(text, symbols).Run(&program, &e.parameters_used_, &max_stack);
-  e.program_.reserve(program.size());
-  for (const auto& [code, value] : program) e.program_.push_back({code, value});
-  e.text_ = text;
-  e.max_stack_ = max_stack;
-  return e;
-}
-
-bool Expression::is_constant() const { return parameters_used_.empty(); }
-
-double Expression::Evaluate(const double* parameters) const {
-  if (program_.empty()) return 0.0;
-  assert(max_stack_ <= kMaxStack);
+// The value stack machine (also folds literal subexpressions at parse time).
+double Expression::Run(const Op* ops, size_t count, const ExpressionInputs& in) {
   std::array<double, kMaxStack> stack;
   int top = -1;  // index of the top element
-  for (const Op& op : program_) {
+  for (size_t k = 0; k < count; ++k) {
+    const Op& op = ops[k];
     switch (op.code) {
       case kConst: stack[++top] = op.value; break;
       case kParam:
-        assert(parameters != nullptr);
-        stack[++top] = parameters[static_cast<int>(op.value)];
+        assert(in.parameters != nullptr);
+        stack[++top] = in.parameters[op.index];
         break;
+      case kMeasure:
+        assert(in.measures != nullptr);
+        stack[++top] = in.measures[op.index];
+        break;
+      case kTime: stack[++top] = in.t; break;
       case kAdd: --top; stack[top] += stack[top + 1]; break;
       case kSub: --top; stack[top] -= stack[top + 1]; break;
       case kMul: --top; stack[top] *= stack[top + 1]; break;
       case kDiv: --top; stack[top] /= stack[top + 1]; break;
       case kPow:
       case kPowFn: --top; stack[top] = std::pow(stack[top], stack[top + 1]); break;
+      case kPowConst: stack[top] = std::pow(stack[top], op.value); break;
       case kNeg: stack[top] = -stack[top]; break;
       case kSin: stack[top] = std::sin(stack[top]); break;
       case kCos: stack[top] = std::cos(stack[top]); break;
@@ -385,6 +601,10 @@ double Expression::Evaluate(const double* parameters) const {
       case kSqrt: stack[top] = std::sqrt(stack[top]); break;
       case kAbs: stack[top] = std::abs(stack[top]); break;
       case kSign: stack[top] = Sign(stack[top]); break;
+      case kSpline:
+        assert(in.splines != nullptr && in.splines[op.index] != nullptr);
+        stack[top] = in.splines[op.index]->Evaluate(stack[top]);
+        break;
       case kAtan2: --top; stack[top] = std::atan2(stack[top], stack[top + 1]); break;
       case kMin: --top; stack[top] = std::min(stack[top], stack[top + 1]); break;
       case kMax: --top; stack[top] = std::max(stack[top], stack[top + 1]); break;
@@ -397,6 +617,266 @@ double Expression::Evaluate(const double* parameters) const {
   }
   assert(top == 0);
   return stack[0];
+}
+
+Expression Expression::Constant(double value) {
+  Expression e;
+  e.program_.push_back({kConst, -1, -1, value});
+  std::ostringstream text;
+  text << std::setprecision(17) << value;
+  e.text_ = text.str();
+  e.max_stack_ = 1;
+  return e;
+}
+
+Expression Expression::Parse(const std::string& text, const SymbolTable& symbols) {
+  Expression e;
+  ExpressionParser(text, symbols).Run(&e);
+  e.program_.shrink_to_fit();
+  e.text_ = text;
+  return e;
+}
+
+bool Expression::is_constant() const {
+  return parameters_used_.empty() && measures_used_.empty() && splines_used_.empty() && !uses_time_;
+}
+
+double Expression::Evaluate(const double* parameters) const {
+  ExpressionInputs in;
+  in.parameters = parameters;
+  return Evaluate(in);
+}
+
+double Expression::Evaluate(const ExpressionInputs& in) const {
+  if (program_.empty()) return 0.0;
+  assert(max_stack_ <= kMaxStack);
+  return Run(program_.data(), program_.size(), in);
+}
+
+double Expression::EvaluateGradient(const ExpressionInputs& in, ExpressionGradient* g) const {
+  assert(g != nullptr);
+  g->d_t = 0;
+  if (program_.empty()) return 0.0;
+  assert(max_stack_ <= kMaxStack);
+  const int n = num_slots_;
+  std::array<double, kMaxStack> v;
+  std::array<std::array<double, kMaxArgs>, kMaxStack> d;  // d[k][slot]: derivatives of v[k]
+  int top = -1;
+  auto leaf = [&](double value, int slot) {
+    v[++top] = value;
+    double* row = d[top].data();
+    for (int j = 0; j < n; ++j) row[j] = 0.0;
+    if (slot >= 0) row[slot] = 1.0;
+  };
+  for (const Op& op : program_) {
+    switch (op.code) {
+      case kConst: leaf(op.value, -1); break;
+      case kParam: assert(in.parameters != nullptr); leaf(in.parameters[op.index], op.slot); break;
+      case kMeasure: assert(in.measures != nullptr); leaf(in.measures[op.index], op.slot); break;
+      case kTime: leaf(in.t, op.slot); break;
+      case kAdd: {
+        --top;
+        v[top] += v[top + 1];
+        double* a = d[top].data();
+        const double* b = d[top + 1].data();
+        for (int j = 0; j < n; ++j) a[j] += b[j];
+        break;
+      }
+      case kSub: {
+        --top;
+        v[top] -= v[top + 1];
+        double* a = d[top].data();
+        const double* b = d[top + 1].data();
+        for (int j = 0; j < n; ++j) a[j] -= b[j];
+        break;
+      }
+      case kMul: {
+        --top;
+        const double a = v[top], b = v[top + 1];
+        v[top] = a * b;
+        double* da = d[top].data();
+        const double* db = d[top + 1].data();
+        for (int j = 0; j < n; ++j) da[j] = b * da[j] + a * db[j];
+        break;
+      }
+      case kDiv: {
+        --top;
+        const double b = v[top + 1];
+        const double c = v[top] / b;
+        v[top] = c;
+        double* da = d[top].data();
+        const double* db = d[top + 1].data();
+        for (int j = 0; j < n; ++j) da[j] = (da[j] - c * db[j]) / b;
+        break;
+      }
+      case kNeg: {
+        v[top] = -v[top];
+        double* a = d[top].data();
+        for (int j = 0; j < n; ++j) a[j] = -a[j];
+        break;
+      }
+      case kSpline: {
+        assert(in.splines != nullptr && in.splines[op.index] != nullptr);
+        double f1 = 0;
+        v[top] = in.splines[op.index]->Evaluate(v[top], &f1, nullptr);
+        Scale(d[top].data(), f1, n);
+        break;
+      }
+      case kPow:
+      case kPowFn: {
+        --top;
+        double fa, fb;
+        v[top] = PowPartials(v[top], v[top + 1], &fa, &fb);
+        Combine(d[top].data(), fa, d[top + 1].data(), fb, n);
+        break;
+      }
+      case kAtan2: {
+        --top;
+        const double y = v[top], x = v[top + 1];
+        const double r2 = x * x + y * y;
+        v[top] = std::atan2(y, x);
+        // d atan2(y, x) = (x dy - y dx) / (x^2 + y^2); 0 at the origin by convention.
+        const double fy = r2 > 0 ? x / r2 : 0.0, fx = r2 > 0 ? -y / r2 : 0.0;
+        Combine(d[top].data(), fy, d[top + 1].data(), fx, n);
+        break;
+      }
+      case kMin:
+      case kMax: {
+        --top;
+        const double a = v[top], b = v[top + 1];
+        // Ties take the first argument, as std::min / std::max do.
+        const bool first = op.code == kMin ? !(b < a) : !(a < b);
+        if (!first) {
+          v[top] = b;
+          d[top] = d[top + 1];
+        }
+        break;
+      }
+      case kStep: {
+        top -= 4;
+        double p[5];
+        v[top] = SmoothStep(v[top], v[top + 1], v[top + 2], v[top + 3], v[top + 4], p);
+        double* out = d[top].data();
+        for (int j = 0; j < n; ++j) {
+          double s = 0;
+          for (int i = 0; i < 5; ++i) s += p[i] != 0 ? p[i] * d[top + i][j] : 0.0;
+          out[j] = s;
+        }
+        break;
+      }
+      default: {
+        double f1;
+        v[top] = Unary<false>(op.code, v[top], op.value, &f1, nullptr);
+        Scale(d[top].data(), f1, n);
+        break;
+      }
+    }
+  }
+  assert(top == 0);
+  const int nt = uses_time_ ? 1 : 0;
+  const int nm = static_cast<int>(measures_used_.size());
+  const int np = static_cast<int>(parameters_used_.size());
+  if (uses_time_) g->d_t = d[0][0];
+  for (int k = 0; k < nm; ++k) g->d_measures[k] = d[0][nt + k];
+  for (int k = 0; k < np; ++k) g->d_parameters[k] = d[0][nt + nm + k];
+  return v[0];
+}
+
+double Expression::EvaluateTimeDerivatives(const ExpressionInputs& in, double* d1, double* d2) const {
+  if (depends_on_state()) {
+    throw std::logic_error("expression '" + text_ +
+                           "' depends on measures: its time derivatives need the state's");
+  }
+  T2 r{0, 0, 0};
+  if (!program_.empty()) {
+    assert(max_stack_ <= kMaxStack);
+    std::array<T2, kMaxStack> s;
+    int top = -1;
+    for (const Op& op : program_) {
+      switch (op.code) {
+        case kConst: s[++top] = Lit(op.value); break;
+        case kParam: assert(in.parameters != nullptr); s[++top] = Lit(in.parameters[op.index]); break;
+        case kTime: s[++top] = T2{in.t, 1, 0}; break;
+        case kAdd: --top; s[top] = s[top] + s[top + 1]; break;
+        case kSub: --top; s[top] = s[top] - s[top + 1]; break;
+        case kMul: --top; s[top] = s[top] * s[top + 1]; break;
+        case kDiv: --top; s[top] = s[top] / s[top + 1]; break;
+        case kSpline: {
+          assert(in.splines != nullptr && in.splines[op.index] != nullptr);
+          double f1 = 0, f2 = 0;
+          const double f = in.splines[op.index]->Evaluate(s[top].v, &f1, &f2);
+          s[top] = Chain(f, f1, f2, s[top]);
+          break;
+        }
+        case kPow:
+        case kPowFn: {
+          --top;
+          const T2 a = s[top], b = s[top + 1];
+          if (IsConstantInT(b) || a.v == 0) {
+            // Power rule in a alone (b constant in t; or a = 0, where the b-part vanishes).
+            double f1, f2;
+            const double f = Unary<true>(kPowConst, a.v, b.v, &f1, &f2);
+            s[top] = Chain(f, f1, f2, a);
+          } else {
+            // a^b = exp(b log a): with m = b log a, c' = c m', c'' = c (m'' + m'^2). NaN
+            // derivatives for a < 0 (a^b is not differentiable in b there).
+            const T2 log_a = Chain(std::log(a.v), 1 / a.v, -1 / (a.v * a.v), a);
+            const T2 m = b * log_a;
+            const double c = std::pow(a.v, b.v);
+            s[top] = T2{c, c * m.d1, c * (m.d2 + m.d1 * m.d1)};
+          }
+          break;
+        }
+        case kAtan2: {
+          --top;
+          const T2 y = s[top], x = s[top + 1];
+          const double r2 = x.v * x.v + y.v * y.v;
+          T2 c{std::atan2(y.v, x.v), 0, 0};
+          if (r2 > 0 && !(IsConstantInT(x) && IsConstantInT(y))) {
+            // First partials fy = x/r2, fx = -y/r2; second fyy = -2xy/r2^2, fxx = 2xy/r2^2,
+            // fxy = (y^2 - x^2)/r2^2.
+            const double fy = x.v / r2, fx = -y.v / r2;
+            const double r4 = r2 * r2;
+            const double fyy = -2 * x.v * y.v / r4, fxx = -fyy, fxy = (y.v * y.v - x.v * x.v) / r4;
+            c.d1 = fy * y.d1 + fx * x.d1;
+            c.d2 = fy * y.d2 + fx * x.d2 + fyy * y.d1 * y.d1 + 2 * fxy * x.d1 * y.d1 + fxx * x.d1 * x.d1;
+          }
+          s[top] = c;
+          break;
+        }
+        case kMin: --top; if (s[top + 1].v < s[top].v) s[top] = s[top + 1]; break;
+        case kMax: --top; if (s[top].v < s[top + 1].v) s[top] = s[top + 1]; break;
+        case kStep: {
+          top -= 4;
+          const T2 x = s[top], x0 = s[top + 1], h0 = s[top + 2], x1 = s[top + 3], h1 = s[top + 4];
+          const double value = SmoothStep(x.v, x0.v, h0.v, x1.v, h1.v);
+          if (x.v <= x0.v) {
+            s[top] = h0;
+          } else if (x.v >= x1.v) {
+            s[top] = h1;
+          } else {
+            const T2 u = (x - x0) / (x1 - x0);
+            const T2 S = u * u * (Lit(3) - Lit(2) * u);
+            s[top] = h0 + (h1 - h0) * S;
+          }
+          s[top].v = value;  // bit-identical to Evaluate
+          break;
+        }
+        case kMeasure: assert(false && "checked above"); break;
+        default: {
+          double f1, f2;
+          const double f = Unary<true>(op.code, s[top].v, op.value, &f1, &f2);
+          s[top] = Chain(f, f1, f2, s[top]);
+          break;
+        }
+      }
+    }
+    assert(top == 0);
+    r = s[0];
+  }
+  if (d1 != nullptr) *d1 = r.d1;
+  if (d2 != nullptr) *d2 = r.d2;
+  return r.v;
 }
 
 }  // namespace mbdae::mbs

@@ -1,24 +1,71 @@
-// Scalar expressions of the model file: numbers, `pi`, parameter names, + - * / ^,
-// unary minus, parentheses and the functions of the model format. Parsed once into a
-// compact postfix program; evaluation does no string work and no allocation.
+// Scalar expressions of the model file: numbers, `pi`, parameter names, the time `t`,
+// measure names, `spline(NAME, x)`, + - * / ^, unary minus, parentheses and the functions
+// of the model format. Parsed once into a compact postfix program (literal
+// subexpressions folded); evaluation does no string work and no allocation.
 //
-// This issue's scope: expressions over parameters only (load-time and run-time values
-// of forces). Time `t`, measures and `spline()` are rejected by the parser with a
-// "not supported yet" error; they come with the elements issue.
+// Three evaluations of the same program:
+//   Evaluate                 the value;
+//   EvaluateGradient         the value and its exact first derivatives with respect to t,
+//                            every measure and every parameter the expression uses
+//                            (forward-mode dual numbers, at most kMaxExpressionArguments
+//                            distinct arguments, checked at parse time);
+//   EvaluateTimeDerivatives  the value and its exact first and second derivatives with
+//                            respect to t (second-order Taylor arithmetic), for
+//                            expressions that do not depend on the state.
+// All three are const and keep no scratch in the object: one Expression may be evaluated
+// from several threads at once. The derivative conventions at non-smooth points (abs,
+// sign, min, max, step, pow) are in docs/expressions.md.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <exception>
 #include <string>
 #include <vector>
 
 namespace mbdae::mbs {
 
+class Spline;  // mbs/spline.h
+
+// Largest number of distinct arguments (t, measures, parameters together) of one
+// expression; Parse rejects more.
+constexpr int kMaxExpressionArguments = 32;
+
 // Names an expression may refer to, by index.
 struct SymbolTable {
-  std::vector<std::string> parameters;  // index i -> parameter i
-  // Names that exist in the model but may not be used here (measures, `t`): using them
-  // gives "not supported yet" instead of "unknown name".
+  std::vector<std::string> parameters;  // index i -> ExpressionInputs::parameters[i]
+  // State-dependent arguments: index k -> ExpressionInputs::measures[k].
+  std::vector<std::string> measures;
+  // Names usable as the first argument of spline(NAME, x): index k ->
+  // ExpressionInputs::splines[k]. spline() itself is usable only where allow_time is true
+  // (values evaluated during the run).
+  std::vector<std::string> splines;
+  // Whether `t` (and spline()) may be used. When false, `t` gives "'t' cannot be used
+  // here: this value is evaluated once at load time".
+  bool allow_time = false;
+  // Names that exist in the model but may not be used here (typically measures in a
+  // load-time value or a motion): using them gives "cannot be used here" instead of
+  // "unknown name".
   std::vector<std::string> reserved;
+};
+
+// The values an expression is evaluated at. Arrays are indexed as in the SymbolTable the
+// expression was parsed with; an array the expression does not use may be null.
+struct ExpressionInputs {
+  double t = 0;
+  const double* parameters = nullptr;
+  const double* measures = nullptr;
+  const Spline* const* splines = nullptr;
+};
+
+// First derivatives of an expression's value. Entries beyond the counts of
+// measures_used() / parameters_used() are left as they were.
+struct ExpressionGradient {
+  double d_t = 0;  // d/dt (0 when the expression does not use t)
+  // d_measures[k] = d/d(measure measures_used()[k])
+  std::array<double, kMaxExpressionArguments> d_measures;
+  // d_parameters[k] = d/d(parameter parameters_used()[k])
+  std::array<double, kMaxExpressionArguments> d_parameters;
 };
 
 class ExpressionError : public std::exception {
@@ -35,22 +82,49 @@ class Expression {
  public:
   Expression() = default;                       // the constant 0
   static Expression Constant(double value);
-  // Throws ExpressionError on a syntax error or unknown name.
+  // Throws ExpressionError on a syntax error, an unknown name, a name not usable here,
+  // or more than kMaxExpressionArguments distinct arguments; the message names the column.
   static Expression Parse(const std::string& text, const SymbolTable& symbols);
 
+  // The value over the parameters alone (t = 0); for expressions without measures and
+  // splines, e.g. load-time values and force constants.
   double Evaluate(const double* parameters) const;
-  bool is_constant() const;                     // refers to no parameter
+  double Evaluate(const ExpressionInputs& in) const;
+  // Value, and *g (see ExpressionGradient).
+  double EvaluateGradient(const ExpressionInputs& in, ExpressionGradient* g) const;
+  // Value, *d1 = d/dt and *d2 = d2/dt2 (either may be null), with the parameters held
+  // constant. Throws std::logic_error when the expression depends on the state
+  // (depends_on_state()); in.measures is not read.
+  double EvaluateTimeDerivatives(const ExpressionInputs& in, double* d1, double* d2) const;
+
+  bool is_constant() const;       // refers to no parameter, no measure and not to t
+  bool uses_time() const { return uses_time_; }
+  bool depends_on_state() const { return !measures_used_.empty(); }
+  // Indices (into the SymbolTable's lists) in the order of first use.
   const std::vector<int>& parameters_used() const { return parameters_used_; }
+  const std::vector<int>& measures_used() const { return measures_used_; }
+  const std::vector<int>& splines_used() const { return splines_used_; }
+  // Distinct arguments: (uses_time() ? 1 : 0) + measures_used().size() + parameters_used().size().
+  int num_arguments() const { return num_slots_; }
   const std::string& text() const { return text_; }
 
  private:
+  friend class ExpressionParser;
   struct Op {
     int code;
-    double value;  // constant, or index of the parameter
+    int index;     // parameter, measure or spline index (leaves, spline())
+    int slot;      // derivative slot of a leaf: t first, then measures, then parameters
+    double value;  // literal, or the exponent of a power with a literal exponent
   };
+  // The value stack machine over ops[0, count).
+  static double Run(const Op* ops, size_t count, const ExpressionInputs& in);
   std::vector<Op> program_;
   std::vector<int> parameters_used_;
+  std::vector<int> measures_used_;
+  std::vector<int> splines_used_;
   std::string text_;
+  bool uses_time_ = false;
+  int num_slots_ = 0;
   int max_stack_ = 1;
 };
 
