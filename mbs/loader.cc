@@ -518,16 +518,18 @@ class Loader {
           Fail(n, element, "missing the points: give 'x' and 'y' (lists of numbers) or 'file'");
         }
         const YAML::Node xs = Required(n, element, "x"), ys = Required(n, element, "y");
-        auto list = [&](const YAML::Node& v, const char* key) {
+        auto list = [&](const YAML::Node& v, const char* key, std::vector<Expression>* expressions) {
           if (!v.IsSequence()) Fail(v, element, std::string("'") + key + "' must be a list of numbers, got " + Kind(v));
           std::vector<double> out;
           for (size_t k = 0; k < v.size(); ++k) {
-            out.push_back(LoadTimeNumber(v[k], element, std::string(key) + "[" + std::to_string(k) + "]"));
+            const std::string entry = std::string(key) + "[" + std::to_string(k) + "]";
+            out.push_back(LoadTimeNumber(v[k], element, entry));
+            expressions->push_back(Parse(v[k], element, entry));
           }
           return out;
         };
-        x = list(xs, "x");
-        y = list(ys, "y");
+        x = list(xs, "x", &def.x_expressions);
+        y = list(ys, "y", &def.y_expressions);
         if (x.size() != y.size()) {
           Fail(ys, element, "'x' has " + std::to_string(x.size()) + " entries but 'y' has " + std::to_string(y.size()) +
                                 "; they must have the same number");

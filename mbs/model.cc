@@ -1,5 +1,8 @@
 #include "mbs/model.h"
 
+#include <cassert>
+#include <stdexcept>
+
 namespace mbdae::mbs {
 
 namespace {
@@ -24,6 +27,29 @@ std::vector<double> Model::parameter_values() const {
   values.reserve(parameters.size());
   for (const Parameter& p : parameters) values.push_back(p.value);
   return values;
+}
+
+bool SplineDef::depends_on_parameters() const {
+  for (const std::vector<Expression>* list : {&x_expressions, &y_expressions})
+    for (const Expression& e : *list)
+      if (!e.parameters_used().empty()) return true;
+  return false;
+}
+
+void ReevaluateSplinePoints(Model* model) {
+  assert(model);
+  const std::vector<double> values = model->parameter_values();
+  for (SplineDef& def : model->splines) {
+    if (!def.depends_on_parameters()) continue;
+    std::vector<double> x, y;
+    for (const Expression& e : def.x_expressions) x.push_back(e.Evaluate(values.data()));
+    for (const Expression& e : def.y_expressions) y.push_back(e.Evaluate(values.data()));
+    try {
+      def.spline.SetPoints(std::move(x), std::move(y));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("spline '" + def.name + "': " + e.what());
+    }
+  }
 }
 
 }  // namespace mbdae::mbs

@@ -103,7 +103,12 @@ struct SplineDef {
   std::string name;
   Spline spline;
   std::string file;  // the data file as read (resolved against the model file), "" if inline
+  // Inline points as written (numbers or expressions of the parameters), for
+  // ReevaluateSplinePoints; empty for a spline read from a file.
+  std::vector<Expression> x_expressions, y_expressions;
   SourceLocation where;
+  // Whether some inline point depends on a parameter.
+  bool depends_on_parameters() const;
 };
 
 enum class IntegratorKind { kHht, kIda };
@@ -146,5 +151,13 @@ struct Model {
 
   std::vector<double> parameter_values() const;
 };
+
+// After parameter values changed (Model::parameters[k].value): re-evaluates the points of
+// every inline spline that depends on a parameter and sets them (Spline::SetPoints);
+// other splines, including points set by hand with SetPoints, are left alone. Throws
+// std::invalid_argument "spline 'NAME': what" if the new points are not valid (x no
+// longer increasing, a value not finite); that spline then keeps its previous points,
+// the ones before it in Model::splines have been updated.
+void ReevaluateSplinePoints(Model* model);
 
 }  // namespace mbdae::mbs

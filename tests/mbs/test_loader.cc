@@ -461,6 +461,33 @@ TEST(LoaderSplines, PointsCanBeReplacedAfterLoading) {
   EXPECT_NEAR(m.splines[0].spline.Evaluate(0.5), 1.375, 1e-15);
 }
 
+// Parameters changed after loading: the inline points written as expressions follow.
+TEST(LoaderSplines, ReevaluateSplinePointsAfterAParameterChange) {
+  Model m = LoadModel(ModelPath("splines.yaml"));
+  EXPECT_TRUE(m.splines[m.find_spline("steps")].depends_on_parameters());
+  EXPECT_FALSE(m.splines[m.find_spline("drive")].depends_on_parameters());
+  EXPECT_FALSE(m.splines[m.find_spline("road")].depends_on_parameters());
+  m.splines[m.find_spline("drive")].spline.SetPoints({0, 1, 2}, {0, 2, 0});  // by hand: kept
+  m.parameters[m.find_parameter("a")].value = 1;
+  m.parameters[m.find_parameter("top")].value = 3;
+  ReevaluateSplinePoints(&m);
+  const Spline& steps = m.splines[m.find_spline("steps")].spline;
+  EXPECT_EQ(steps.x(), (std::vector<double>{0, 0.5, 1, 3}));
+  EXPECT_EQ(steps.y(), (std::vector<double>{0, 3, 0, -3}));
+  EXPECT_NEAR(steps.Evaluate(0.25), 1.5, 1e-15);
+  EXPECT_EQ(m.splines[m.find_spline("drive")].spline.y(), (std::vector<double>{0, 2, 0}));
+  // Points that become invalid: an error naming the spline, the old points kept.
+  m.parameters[m.find_parameter("a")].value = 4;
+  try {
+    ReevaluateSplinePoints(&m);
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "spline 'steps': x must be strictly increasing: x[3] = 3 is not greater than x[2] = 4");
+  }
+  EXPECT_EQ(steps.x(), (std::vector<double>{0, 0.5, 1, 3}));
+}
+
 TEST(LoaderSplines, Mistakes) {
   auto err = [](const std::string& splines) { return LoadError("format: 1\nparameters: {p: 1}\nsplines:\n" + splines); };
   std::string e;
