@@ -89,9 +89,9 @@ std::string NameFile(const std::string& path, const std::string& message) {
 
 int RunInfo(const CommandLine& cl) {
   mbs::Model model = Load(cl);
-  driver::AssemblyOptions ao;
-  ao.check_determinacy = false;  // info describes; `check` judges
-  driver::Assembly asmb = driver::Assemble(model, ao);
+  // A model whose motion is not determined is reported like `check` does (naming the
+  // bodies), rather than with the singular solve it would run into.
+  driver::Assembly asmb = driver::Assemble(model);
   ModelInfo info = Describe(model, asmb);
   std::cout << (cl.json ? info.Json() : info.Text());
   return 0;

@@ -93,11 +93,10 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (s.t_end / s.output_step > 1e8)
     throw InputError("simulation settings t_end / output_step give more than 1e8 output rows");
   std::string error;
-  if (s.integrator == mbs::IntegratorKind::kHht) {
-    if (!HhtFrom(s).IsValid(&error)) throw InputError("hht settings: " + error);
-  } else {
-    if (!IdaFrom(s).IsValid(&error)) throw InputError("ida settings: " + error);
-  }
+  // Both integrators' settings are checked, the unused one too: a bad value given on
+  // the command line is a mistake whichever integrator runs.
+  if (!HhtFrom(s).IsValid(&error)) throw InputError("hht settings: " + error);
+  if (!IdaFrom(s).IsValid(&error)) throw InputError("ida settings: " + error);
   return s;
 }
 
@@ -233,6 +232,8 @@ namespace {
 Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw InputError("assembly options: " + error);
+  if (model.bodies.empty())
+    throw InputError(Prefix(model) + "the model has no bodies: there is nothing to simulate");
   Assembly r;
   r.system = std::make_unique<mbs::MultibodySystem>(model);
   mbs::MultibodySystem& sys = *r.system;
@@ -520,6 +521,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
 
   const std::vector<double> times = OutputTimes(settings.t_end, settings.output_step);
   bool ok = true;
+  std::string exception_reason;
   try {
     write_row(integrator->state());
     for (size_t k = 1; k < times.size(); ++k) {
@@ -532,11 +534,10 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
       write_row(x);
     }
   } catch (const std::exception& e) {
-    // Keep what was written and say why it stopped; the caller decides what it means.
-    file.SetAttribute("status", "failed");
-    file.SetAttribute("t_reached", summary.t_reached);
-    file.SetAttribute("failure_reason", std::string(e.what()));
-    throw;
+    // An exception from the integration (e.g. a linear solver error) is a failure of
+    // the solver like any other: the rows written so far stay, with the reason.
+    ok = false;
+    exception_reason = e.what();
   }
 
   summary.counters = integrator->summary();
@@ -544,7 +545,8 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   summary.status = ok ? SimulationSummary::Status::kDone : SimulationSummary::Status::kFailed;
   if (!ok) {
     summary.t_reached = integrator->summary().t_reached;
-    summary.failure_reason = integrator->summary().message.empty()
+    summary.failure_reason = !exception_reason.empty() ? exception_reason
+                             : integrator->summary().message.empty()
                                  ? std::string("the integrator stopped without a reason")
                                  : integrator->summary().message;
   }
