@@ -70,14 +70,29 @@ std::string Lower(std::string_view s) {
   return out;
 }
 
+// ASCII case-insensitive equality with a lower-case keyword.
+bool IsKeyword(std::string_view token, std::string_view lower_keyword) {
+  if (token.size() != lower_keyword.size()) return false;
+  for (std::size_t i = 0; i < token.size(); ++i) {
+    const char c = token[i];
+    if ((c >= 'A' && c <= 'Z' ? char(c - 'A' + 'a') : c) != lower_keyword[i]) return false;
+  }
+  return true;
+}
+
+// White space of the "C" locale, without the locale look-up of std::isspace.
+bool IsSpace(char c) {
+  return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v';
+}
+
 // Splits a line into whitespace-separated tokens (views into the line).
 void Tokenize(std::string_view line, std::vector<std::string_view>* tokens) {
   tokens->clear();
   std::size_t i = 0;
   while (i < line.size()) {
-    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    while (i < line.size() && IsSpace(line[i])) ++i;
     std::size_t j = i;
-    while (j < line.size() && !std::isspace(static_cast<unsigned char>(line[j]))) ++j;
+    while (j < line.size() && !IsSpace(line[j])) ++j;
     if (j > i) tokens->push_back(line.substr(i, j - i));
     i = j;
   }
@@ -178,31 +193,31 @@ TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
   ForEachLine(data, [&](int line, std::string_view text) {
     Tokenize(text, &tokens);
     if (tokens.empty()) return;
-    const std::string key = Lower(tokens[0]);
+    const std::string_view key = tokens[0];
     switch (state) {
       case State::kBeforeSolid:
-        if (key != "solid") fail(line, "expected 'solid', found '" + std::string(tokens[0]) + "'");
+        if (!IsKeyword(key, "solid")) fail(line, "expected 'solid', found '" + std::string(tokens[0]) + "'");
         state = State::kInSolid;
         return;
       case State::kInSolid:
-        if (key == "facet") {
+        if (IsKeyword(key, "facet")) {
           facet_line = line;
           state = State::kInFacet;
-        } else if (key == "endsolid") {
+        } else if (IsKeyword(key, "endsolid")) {
           state = State::kBeforeSolid;
         } else {
           fail(line, "expected 'facet' or 'endsolid', found '" + std::string(tokens[0]) + "'");
         }
         return;
       case State::kInFacet:
-        if (key != "outer" || tokens.size() < 2 || Lower(tokens[1]) != "loop") {
+        if (!IsKeyword(key, "outer") || tokens.size() < 2 || !IsKeyword(tokens[1], "loop")) {
           fail(line, "expected 'outer loop', found '" + std::string(text) + "'");
         }
         loop_vertices = 0;
         state = State::kInLoop;
         return;
       case State::kInLoop:
-        if (key == "vertex") {
+        if (IsKeyword(key, "vertex")) {
           Vec3 p;
           if (tokens.size() != 4 || !ParseDouble(tokens[1], &p[0]) ||
               !ParseDouble(tokens[2], &p[1]) || !ParseDouble(tokens[3], &p[2])) {
@@ -214,7 +229,7 @@ TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
                            " has more than 3 vertices (STL facets are triangles)");
           }
           mesh.vertices.push_back(p);
-        } else if (key == "endloop") {
+        } else if (IsKeyword(key, "endloop")) {
           if (loop_vertices != 3) {
             fail(line, "the facet of line " + std::to_string(facet_line) + " has " +
                            std::to_string(loop_vertices) + " vertices, 3 expected");
@@ -228,7 +243,7 @@ TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
         }
         return;
       case State::kAfterLoop:
-        if (key != "endfacet") fail(line, "expected 'endfacet', found '" + std::string(tokens[0]) + "'");
+        if (!IsKeyword(key, "endfacet")) fail(line, "expected 'endfacet', found '" + std::string(tokens[0]) + "'");
         state = State::kInSolid;
         return;
     }
@@ -370,24 +385,41 @@ void MergeVertices(TriangleMesh* mesh, double tolerance) {
       new_index[v] = it->second;
     }
   } else {
-    // Grid of cell size `tolerance`: a vertex within the tolerance of a kept one lies in
-    // the same or a neighbouring cell. Each cell lists the kept vertices in it.
-    std::unordered_map<std::array<std::int64_t, 3>, std::vector<int>, PointHash> grid;
+    // Grid of cell size h = 4 x tolerance: a kept vertex within the tolerance of p lies in
+    // p's cell or, along an axis where p is within the tolerance of a cell face, in the
+    // neighbour across that face (about 1.5^3 cells searched on average). Kept vertices
+    // are more than the tolerance apart, so a cell holds at most 5^3 of them. Each cell
+    // heads a list of its kept vertices, linked by `next_in_cell`.
+    const double h = 4 * tolerance;
+    std::unordered_map<std::array<std::int64_t, 3>, int, PointHash> head;
+    std::vector<int> next_in_cell;
     for (std::size_t v = 0; v < n; ++v) {
       if (!used[v]) continue;
       const Vec3& p = mesh->vertices[v];
       std::array<std::int64_t, 3> cell;
-      for (int i = 0; i < 3; ++i) cell[i] = static_cast<std::int64_t>(std::floor(p[i] / tolerance));
-      int found = -1;
-      for (int dx = -1; dx <= 1 && found < 0; ++dx) {
-        for (int dy = -1; dy <= 1 && found < 0; ++dy) {
-          for (int dz = -1; dz <= 1 && found < 0; ++dz) {
-            const auto it = grid.find({cell[0] + dx, cell[1] + dy, cell[2] + dz});
-            if (it == grid.end()) continue;
-            for (int k : it->second) {
-              if ((kept[k] - p).cwiseAbs().maxCoeff() <= tolerance) {
+      int low[3], high[3];
+      for (int i = 0; i < 3; ++i) {
+        const double x = p[i] / h;
+        if (!(std::abs(x) < 1e18)) {
+          Fail(Label(*mesh), "merge tolerance " + std::to_string(tolerance) +
+                                 " is too small for the vertex coordinate " + std::to_string(p[i]));
+        }
+        const double f = std::floor(x);
+        cell[i] = static_cast<std::int64_t>(f);
+        // The distances to the cell faces, with a margin for the round-off of x - f.
+        const double margin = tolerance * (1 + 1e-9) + 8e-16 * std::abs(x) * h;
+        low[i] = (x - f) * h <= margin ? -1 : 0;
+        high[i] = (f + 1 - x) * h <= margin ? 1 : 0;
+      }
+      int found = -1;  // the first kept vertex within the tolerance
+      for (int dx = low[0]; dx <= high[0]; ++dx) {
+        for (int dy = low[1]; dy <= high[1]; ++dy) {
+          for (int dz = low[2]; dz <= high[2]; ++dz) {
+            const auto it = head.find({cell[0] + dx, cell[1] + dy, cell[2] + dz});
+            if (it == head.end()) continue;
+            for (int k = it->second; k >= 0; k = next_in_cell[k]) {
+              if ((found < 0 || k < found) && (kept[k] - p).cwiseAbs().maxCoeff() <= tolerance) {
                 found = k;
-                break;
               }
             }
           }
@@ -396,7 +428,9 @@ void MergeVertices(TriangleMesh* mesh, double tolerance) {
       if (found < 0) {
         found = static_cast<int>(kept.size());
         kept.push_back(p);
-        grid[cell].push_back(found);
+        const auto [it, inserted] = head.emplace(cell, found);
+        next_in_cell.push_back(inserted ? -1 : it->second);
+        it->second = found;
       }
       new_index[v] = found;
     }
@@ -419,7 +453,7 @@ TriangleMesh ReadStl(const std::string& path, const MeshReadOptions& options) {
   const bool has_header = data.size() >= 84;
   const std::uint32_t n = has_header ? LittleEndian32(data.data() + 80) : 0;
   const std::uint64_t binary_size = 84 + 50 * std::uint64_t(n);
-  const bool starts_solid = data.size() >= 5 && Lower(std::string_view(data.data(), 5)) == "solid";
+  const bool starts_solid = data.size() >= 5 && IsKeyword(std::string_view(data.data(), 5), "solid");
   if (has_header && data.size() == binary_size) {
     mesh = ParseBinaryStl(path, data, n);
   } else if (starts_solid && LooksLikeText(data)) {

@@ -464,6 +464,50 @@ TEST(MeshRead, MergeToleranceClosesANearlyClosedStl) {
   ExpectError([&] { ReadMesh(path, options); }, {path, "merge_tolerance"});
 }
 
+// MergeVertices with a tolerance against the quadratic rule it implements: each vertex, in
+// order, joins the first kept vertex within the tolerance in every coordinate, or is kept.
+// Clusters of points jittered around lattice points, so that many cross cell faces.
+TEST(MeshRead, MergeToleranceMatchesBruteForce) {
+  const double tolerance = 0.01;
+  TriangleMesh mesh;
+  mesh.name = "cloud";
+  unsigned state = 12345;
+  auto uniform = [&state] {  // a small linear congruential generator: same points everywhere
+    state = state * 1103515245u + 12345u;
+    return ((state >> 8) & 0xffff) / 65535.0;
+  };
+  for (int k = 0; k < 1500; ++k) {
+    const Vec3 lattice(k % 7 * 0.013, k / 7 % 5 * 0.011, k / 35 % 3 * 0.017);
+    mesh.vertices.push_back(lattice + 0.012 * Vec3(uniform(), uniform(), uniform()) -
+                            Vec3::Constant(0.006) + Vec3(-0.5, 3.0, 1.0));
+  }
+  for (int k = 0; k + 2 < 1500; k += 3) mesh.triangles.push_back({k, k + 1, k + 2});
+  std::vector<Vec3> kept;
+  std::vector<int> expected;
+  for (const Vec3& p : mesh.vertices) {
+    int found = -1;
+    for (std::size_t j = 0; j < kept.size() && found < 0; ++j) {
+      if ((kept[j] - p).cwiseAbs().maxCoeff() <= tolerance) found = static_cast<int>(j);
+    }
+    if (found < 0) {
+      found = static_cast<int>(kept.size());
+      kept.push_back(p);
+    }
+    expected.push_back(found);
+  }
+  ASSERT_GT(kept.size(), 20u);
+  ASSERT_LT(kept.size(), 1000u);
+  TriangleMesh merged = mesh;
+  MergeVertices(&merged, tolerance);
+  ASSERT_EQ(merged.vertices.size(), kept.size());
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(merged.triangles[t][c], expected[mesh.triangles[t][c]]) << "vertex " << 3 * t + c;
+    }
+  }
+  for (std::size_t j = 0; j < kept.size(); ++j) EXPECT_EQ(merged.vertices[j], kept[j]);
+}
+
 TEST(MeshRead, DegenerateTrianglesAreSkipped) {
   TriangleMesh mesh = BoxMesh(kSize);
   mesh.triangles.push_back({0, 0, 1});  // a repeated index: no area, no edge
