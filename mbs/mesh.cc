@@ -453,11 +453,16 @@ TriangleMesh ReadStl(const std::string& path, const MeshReadOptions& options) {
   const bool has_header = data.size() >= 84;
   const std::uint32_t n = has_header ? LittleEndian32(data.data() + 80) : 0;
   const std::uint64_t binary_size = 84 + 50 * std::uint64_t(n);
-  const bool starts_solid = data.size() >= 5 && IsKeyword(std::string_view(data.data(), 5), "solid");
+  // ASCII STL: "solid" after an optional UTF-8 byte-order mark and white space.
+  const bool bom = data.compare(0, 3, "\xEF\xBB\xBF") == 0;
+  std::size_t first = bom ? 3 : 0;
+  while (first < data.size() && IsSpace(data[first])) ++first;
+  const bool starts_solid =
+      data.size() >= first + 5 && IsKeyword(std::string_view(data.data() + first, 5), "solid");
   if (has_header && data.size() == binary_size) {
     mesh = ParseBinaryStl(path, data, n);
   } else if (starts_solid && LooksLikeText(data)) {
-    mesh = ParseAsciiStl(path, data);
+    mesh = bom ? ParseAsciiStl(path, "   " + data.substr(3)) : ParseAsciiStl(path, data);
   } else if (!has_header) {
     Fail(path, "not an STL file: " + std::to_string(data.size()) +
                    " bytes, shorter than a binary STL header (84 bytes), and not ASCII STL "

@@ -231,6 +231,32 @@ TEST(MeshMass, BoxFromAsciiStl) {
   ExpectBox(mesh, kSize, R, kCentre);
 }
 
+TEST(MeshRead, AsciiStlWithByteOrderMarkLeadingSpaceAndUpperCase) {
+  const std::string path = TempPath("tet.STL");
+  // The unit tetrahedron (0, e_x, e_y, e_z): volume V = 1/6, centroid (1/4, 1/4, 1/4),
+  // moments about the origin int x_i x_j dV = V (1 + delta_ij) / 20 (the simplex moments),
+  // so about the centroid 1/60 - V/16 = 1/160 (i = j) and 1/120 - V/16 = -1/480 (i != j);
+  // with density 6: Ixx = 6 (2/160) = 0.075, Ixy = -6 (-1/480) = 0.0125.
+  WriteText(path,
+            "\xEF\xBB\xBF  \n  SOLID tet\n"
+            "FACET NORMAL 0 0 -1\n OUTER LOOP\n VERTEX 0 0 0\n VERTEX 0 1 0\n VERTEX 1 0 0\n"
+            " ENDLOOP\nENDFACET\n"
+            "facet normal 0 -1 0\n outer loop\n vertex 0 0 0\n vertex +1 0 0\n vertex 0 0 1e0\n"
+            " endloop\nendfacet\n"
+            "facet normal -1 0 0\n outer loop\n vertex 0 0 0\n vertex 0 0 1\n vertex 0 1 0\n"
+            " endloop\nendfacet\n"
+            "facet normal 1 1 1\n outer loop\n vertex 1 0 0\n vertex 0 1 0\n vertex 0 0 1\n"
+            " endloop\nendfacet\n");  // no endsolid: accepted
+  const MeshBodyProperties body = LoadMeshBody(path, 6.0);
+  EXPECT_EQ(body.vertices, 4);
+  EXPECT_NEAR(body.volume, 1.0 / 6.0, 1e-16);
+  EXPECT_NEAR(body.mass.mass, 1.0, 1e-15);
+  EXPECT_LT((body.centre_of_mass - Vec3::Constant(0.25)).norm(), 1e-15);
+  Mat3 reference = Mat3::Constant(0.0125);
+  reference.diagonal().setConstant(0.075);
+  EXPECT_LT(InertiaError(body.mass.inertia, reference), 1e-14);
+}
+
 TEST(MeshMass, BoxFromBinaryStlEvenWithSolidInHeader) {
   for (const std::string header : {"binary box", "solid box (binary: the size rule decides)"}) {
     const std::string path = TempPath("box.stl");
