@@ -34,19 +34,19 @@ constexpr int kMaxExpressionArguments = 32;
 // Names an expression may refer to, by index.
 struct SymbolTable {
   std::vector<std::string> parameters;  // index i -> ExpressionInputs::parameters[i]
+  // Names that exist in the model but may not be used here (typically measures in a
+  // load-time value or a motion): using them gives "cannot be used here" instead of
+  // "unknown name". (Second, so that SymbolTable{parameters, reserved} keeps its meaning.)
+  std::vector<std::string> reserved;
   // State-dependent arguments: index k -> ExpressionInputs::measures[k].
   std::vector<std::string> measures;
   // Names usable as the first argument of spline(NAME, x): index k ->
   // ExpressionInputs::splines[k]. spline() itself is usable only where allow_time is true
   // (values evaluated during the run).
   std::vector<std::string> splines;
-  // Whether `t` (and spline()) may be used. When false, `t` gives "'t' cannot be used
-  // here: this value is evaluated once at load time".
+  // Whether `t` (and spline()) may be used. When false, `t` gives "'t' at column N cannot
+  // be used here: this value is evaluated once at load time".
   bool allow_time = false;
-  // Names that exist in the model but may not be used here (typically measures in a
-  // load-time value or a motion): using them gives "cannot be used here" instead of
-  // "unknown name".
-  std::vector<std::string> reserved;
 };
 
 // The values an expression is evaluated at. Arrays are indexed as in the SymbolTable the
