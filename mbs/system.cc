@@ -51,6 +51,37 @@ Mat34 BMatrix(const Quat& e, const Vec3& u) {
   return b;
 }
 
+// Closed forms of products with B(e, u), without forming it (same values up to rounding):
+//   B(e, u)^T w = 2 [e0 u.w + e_v.(u x w);  (e_v.u) w + (e_v.w) u - (u.w) e_v + e0 u x w],
+//   B(e, u) x   = 2 [x0 (e0 u + e_v x u) + (e_v.u) x_v + (u.x_v) e_v - (e_v.x_v) u - e0 u x x_v].
+inline Quat BtW(const Quat& e, const Vec3& u, const Vec3& w) {
+  const Vec3 ev = e.tail<3>();
+  const Vec3 uxw = u.cross(w);
+  const double uw = u.dot(w);
+  Quat g;
+  g[0] = 2 * (e[0] * uw + ev.dot(uxw));
+  g.tail<3>() = 2 * (ev.dot(u) * w + ev.dot(w) * u - uw * ev + e[0] * uxw);
+  return g;
+}
+inline Vec3 BTimes(const Quat& e, const Vec3& u, const Quat& x) {
+  const Vec3 ev = e.tail<3>(), xv = x.tail<3>();
+  return 2 * (x[0] * (e[0] * u + ev.cross(u)) + ev.dot(u) * xv + u.dot(xv) * ev -
+              ev.dot(xv) * u - e[0] * u.cross(xv));
+}
+// The Hessian of w . A(e) u (B(e, u)^T w = H e), closed form:
+//   H = 2 [u.w, (u x w)^T;  u x w, u w^T + w u^T - (u.w) I].
+inline Mat4 HessDot(const Vec3& u, const Vec3& w) {
+  const double uw = u.dot(w);
+  const Vec3 uxw = u.cross(w);
+  Mat4 h;
+  h(0, 0) = 2 * uw;
+  h.block<1, 3>(0, 1) = 2 * uxw.transpose();
+  h.block<3, 1>(1, 0) = 2 * uxw;
+  h.block<3, 3>(1, 1) = 2 * (u * w.transpose() + w * u.transpose());
+  h.block<3, 3>(1, 1).diagonal().array() -= 2 * uw;
+  return h;
+}
+
 // Hessian of w . (A(e) u) with respect to e (constant, symmetric).
 Mat4 HessianDot(const Vec3& u, const Vec3& w) {
   Mat4 h;
@@ -149,17 +180,20 @@ struct Field {
 };
 
 // Records (row, col) of every add at construction, then replays the adds into the
-// values in the recorded order.
+// values in the recorded order. Declare(r, c) puts an entry into the pattern without
+// writing it (a structural zero of this evaluation that the pattern keeps).
 class Sink {
  public:
-  void StartRecording() { recording_ = true; entries_.clear(); }
+  void StartRecording() { recording_ = true; entries_.clear(); written_.clear(); }
   void Finish(int rows, int cols) {
     pattern_ = dae::CscPattern::FromEntries(rows, cols, entries_);
-    position_.resize(entries_.size());
+    position_.clear();
     for (size_t k = 0; k < entries_.size(); ++k)
-      position_[k] = pattern_.find(entries_[k].first, entries_[k].second);
+      if (written_[k]) position_.push_back(pattern_.find(entries_[k].first, entries_[k].second));
     entries_.clear();
     entries_.shrink_to_fit();
+    written_.clear();
+    written_.shrink_to_fit();
     recording_ = false;
   }
   void Begin(double* values) {
@@ -170,11 +204,14 @@ class Sink {
   bool active() const { return values_ != nullptr || recording_; }
   void Add(int r, int c, double v) {
     if (recording_) {
-      entries_.push_back({r, c});
+      Record(r, c, true);
     } else {
       assert(cursor_ < static_cast<int>(position_.size()));
       values_[position_[cursor_++]] += v;
     }
+  }
+  void Declare(int r, int c) {
+    if (recording_) Record(r, c, false);
   }
   void End() {
     assert(recording_ || !values_ || cursor_ == static_cast<int>(position_.size()));
@@ -183,8 +220,14 @@ class Sink {
   const dae::CscPattern& pattern() const { return pattern_; }
 
  private:
+  // Out of line: keeps Add small enough to be inlined in the evaluation loops.
+  __attribute__((noinline)) void Record(int r, int c, bool written) {
+    entries_.push_back({r, c});
+    written_.push_back(written);
+  }
   bool recording_ = false;
   std::vector<std::pair<int, int>> entries_;
+  std::vector<bool> written_;
   std::vector<int> position_;
   dae::CscPattern pattern_;
   double* values_ = nullptr;
@@ -194,6 +237,71 @@ class Sink {
 // Which entries of a local 14x14 (or 14-vector) block are structurally present.
 enum class Part { kAll, kRotation /* the Euler parameter coordinates */ };
 inline bool InPart(Part p, int local) { return p == Part::kAll || local % 7 >= 3; }
+
+// The state of one body during an evaluation, computed once per Evaluate.
+struct BodyState {
+  Vec3 r, rd;
+  Quat e, ed;
+  Mat3 A;  // RotationMatrix(e)
+};
+
+// A joint's constants. Slot 0 is marker i's body, slot 1 marker j's (body -1: ground,
+// the marker's position and axes are then world values).
+struct JointInfo {
+  int body[2] = {-1, -1};
+  int offset[2] = {-1, -1};
+  Vec3 s[2];                                 // marker positions
+  Mat3 axes[2];                              // marker orientations
+  bool trans = false, rot = false;           // has translational / rotational locks
+  bool need_axis[2][3] = {{false}, {false}};  // marker axes the equations use
+};
+
+// One factor of a joint equation c = U . W, evaluated: the world vector
+//   x = sum_s (sig[s] r_s + A(e_s) ub[s])  (+ a constant from ground),
+// so dx/dr_s = sig[s] I and dx/de_s = B[s] = B(e_s, ub[s]) (rot[s]); xd = dx/dt.
+// sig and rot depend only on the model, never on values.
+struct JointField {
+  Vec3 x = Vec3::Zero(), xd = Vec3::Zero();
+  double sig[2] = {0, 0};
+  bool rot[2] = {false, false};
+  Vec3 ub[2] = {Vec3::Zero(), Vec3::Zero()};
+  Mat34 B[2];
+};
+
+// H += wgt * (Hessian of U . W) in a joint's 14 local coordinates:
+//   dU^T dW + dW^T dU + sum_s [HessDot(U.ub[s], W.x) + HessDot(W.ub[s], U.x)] on (e_s, e_s).
+// nz[g][h] marks the structurally non-zero blocks, groups g = r0, e0, r1, e1.
+void AddDotHessian(const JointField& U, const JointField& W, double wgt, Mat14& H,
+                   bool nz[4][4]) {
+  for (int pass = 0; pass < 2; ++pass) {
+    const JointField& X = pass == 0 ? U : W;
+    const JointField& Y = pass == 0 ? W : U;
+    for (int s = 0; s < 2; ++s) {
+      for (int t = 0; t < 2; ++t) {
+        if (X.sig[s] != 0 && Y.sig[t] != 0) {
+          H.block<3, 3>(7 * s, 7 * t).diagonal().array() += wgt * X.sig[s] * Y.sig[t];
+          nz[2 * s][2 * t] = true;
+        }
+        if (X.sig[s] != 0 && Y.rot[t]) {
+          H.block<3, 4>(7 * s, 7 * t + 3) += (wgt * X.sig[s]) * Y.B[t];
+          nz[2 * s][2 * t + 1] = true;
+        }
+        if (X.rot[s] && Y.sig[t] != 0) {
+          H.block<4, 3>(7 * s + 3, 7 * t) += (wgt * Y.sig[t]) * X.B[s].transpose();
+          nz[2 * s + 1][2 * t] = true;
+        }
+        if (X.rot[s] && Y.rot[t]) {
+          H.block<4, 4>(7 * s + 3, 7 * t + 3).noalias() += wgt * (X.B[s].transpose() * Y.B[t]);
+          nz[2 * s + 1][2 * t + 1] = true;
+        }
+      }
+      if (X.rot[s]) {
+        H.block<4, 4>(7 * s + 3, 7 * s + 3) += wgt * HessDot(X.ub[s], Y.x);
+        nz[2 * s + 1][2 * s + 1] = true;
+      }
+    }
+  }
+}
 
 const char* kLockNames[6] = {"x", "y", "z", "rx", "ry", "rz"};
 
@@ -209,6 +317,8 @@ struct MultibodySystem::Impl {
   // Per joint: its equations (lock index 0..5) and the first constraint row.
   std::vector<std::vector<int>> joint_locks;
   std::vector<int> joint_row;
+  std::vector<JointInfo> joint_info;
+  std::vector<BodyState> state;  // per body, filled at the start of Run
   // Cached force-element constants, evaluated at the start of Evaluate.
   struct ForceValues {
     double k = 0, c = 0, l0 = 0, preload = 0;
@@ -459,6 +569,30 @@ void MultibodySystem::Impl::Setup() {
     check_marker(m.i, "measure '" + m.name + "'");
     check_marker(m.j, "measure '" + m.name + "'");
   }
+  for (const Joint& jt : model.joints) {
+    JointInfo ji;
+    const int mk[2] = {jt.i, jt.j};
+    for (int s = 0; s < 2; ++s) {
+      const Marker& m = model.markers[mk[s]];
+      ji.body[s] = m.body;
+      ji.offset[s] = m.body < 0 ? -1 : Model::coordinate_offset(m.body);
+      ji.s[s] = m.position;
+      ji.axes[s] = m.orientation;
+    }
+    for (int b = 0; b < 6; ++b) {
+      if (!(jt.locks & (1u << b))) continue;
+      if (b < 3) {
+        ji.trans = true;
+        ji.need_axis[1][b] = true;
+      } else {
+        ji.rot = true;
+        ji.need_axis[1][b == 3 ? 1 : 0] = true;
+        ji.need_axis[0][b == 5 ? 1 : 2] = true;
+      }
+    }
+    joint_info.push_back(ji);
+  }
+  state.resize(nb);
   force_values.resize(model.forces.size());
   zeros.assign(nq + nc + 1, 0.0);
 
@@ -514,6 +648,16 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   bool spring_ok = true;
   int bad_spring = -1;
 
+  for (int b = 0; b < nb; ++b) {
+    const int o = Model::coordinate_offset(b);
+    BodyState& st = state[b];
+    st.r = Eigen::Map<const Vec3>(q + o);
+    st.e = Eigen::Map<const Quat>(q + o + 3);
+    st.rd = Eigen::Map<const Vec3>(v + o);
+    st.ed = Eigen::Map<const Quat>(v + o + 3);
+    st.A = RotationMatrix(st.e);
+  }
+
   // Bodies: mass matrix, gravity, quadratic velocity terms.
   for (int b = 0; b < nb; ++b) {
     const Body& body = model.bodies[b];
@@ -553,45 +697,152 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     }
   }
 
-  // Joints.
-  const bool need_hess = sCtw.active() || sCv.active() || out.acc_rhs;
-  Local l;
+  // Joints. Every equation is c = U . W of two fields (JointField): translational
+  // lock k: U = axis k of marker j, W = d = x_i - x_j; rx: j's y-axis . i's z-axis,
+  // ry: j's x . i's z, rz: j's x . i's y. Then
+  //   grad c = dU^T W + dW^T U,   H v = dU^T W' + dW^T U' + B(e_s', ub)^T terms,
+  // and the weighted Hessians of the joint are summed into one local 14x14 block
+  // (the translational equations share W = d: sum_k w_k H_k is the Hessian of
+  // (sum_k w_k U_k) . d).
+  const bool need_b = sCtw.active() || sCv.active() || out.acc_rhs;
+  const bool need_rates = sCv.active() || out.acc_rhs;
+  Mat14 H;
   for (size_t k = 0; k < model.joints.size(); ++k) {
-    const Joint& jt = model.joints[k];
-    Gather(BodyOf(jt.i), BodyOf(jt.j), q, v, a, l);
+    const JointInfo& ji = joint_info[k];
+    const BodyState* bs[2] = {ji.body[0] >= 0 ? &state[ji.body[0]] : nullptr,
+                              ji.body[1] >= 0 ? &state[ji.body[1]] : nullptr};
+    // B matrices and the rate of a field whose x, sig, rot and ub are set.
+    auto finish = [&](JointField& f) {
+      if (!need_b) return;
+      f.xd.setZero();
+      for (int s = 0; s < 2; ++s) {
+        if (!bs[s]) continue;
+        if (f.rot[s]) f.B[s] = BMatrix(bs[s]->e, f.ub[s]);
+        if (need_rates) {
+          if (f.sig[s] != 0) f.xd += f.sig[s] * bs[s]->rd;
+          if (f.rot[s]) f.xd.noalias() += f.B[s] * bs[s]->ed;
+        }
+      }
+    };
+    JointField d, axis[2][3];
+    Vec3 P[2];
+    for (int s = 0; s < 2; ++s) {
+      if (bs[s]) {
+        P[s] = bs[s]->r + bs[s]->A * ji.s[s];
+        d.sig[s] = s == 0 ? 1.0 : -1.0;
+        d.rot[s] = true;
+        d.ub[s] = d.sig[s] * ji.s[s];
+      } else {
+        P[s] = ji.s[s];
+      }
+      for (int c = 0; c < 3; ++c) {
+        if (!ji.need_axis[s][c]) continue;
+        JointField& f = axis[s][c];
+        if (bs[s]) {
+          f.rot[s] = true;
+          f.ub[s] = ji.axes[s].col(c);
+          f.x = bs[s]->A * f.ub[s];
+        } else {
+          f.x = ji.axes[s].col(c);
+        }
+        finish(f);
+      }
+    }
+    d.x = P[0] - P[1];
+    if (ji.trans) finish(d);
+
+    const bool ctw = sCtw.active();
+    bool nz[4][4] = {{false}};
+    if (ctw) H.setZero();
     int row = joint_row[k];
     for (int lock : joint_locks[k]) {
-      Field fu, fw;
-      JointFactors(jt, lock, fu, fw);
-      double c;
-      Vec14 grad;
-      Mat14 h;
-      DotEquation(fu, fw, l, need_hess, &c, &grad, &h);
-      if (out.constraint) out.constraint[row] = c;
-      if (sCq.active()) AddLocalRow(sCq, row, l, grad);
-      if (need_hess) {
-        const Vec14 hv = h * l.v;
-        if (sCv.active()) AddLocalRow(sCv, row, l, hv);
-        if (out.acc_rhs) out.acc_rhs[row] = -l.v.dot(hv);
-        if (sCtw.active()) {
-          // translational equations are linear in r: no r-r entries
-          const Mat14 hw = w[row] * h;
-          if (lock < 3) {
-            for (int c2 = 0; c2 < 14; ++c2) {
-              const int oc = l.offset[c2 / 7];
-              if (oc < 0) continue;
-              for (int r2 = 0; r2 < 14; ++r2) {
-                const int orow = l.offset[r2 / 7];
-                if (orow < 0 || (r2 % 7 < 3 && c2 % 7 < 3)) continue;
-                sCtw.Add(orow + r2 % 7, oc + c2 % 7, hw(r2, c2));
-              }
-            }
+      const JointField& U = lock < 3 ? axis[1][lock] : axis[1][lock == 3 ? 1 : 0];
+      const JointField& W = lock < 3 ? d : axis[0][lock == 5 ? 1 : 2];
+      if (out.constraint) out.constraint[row] = U.x.dot(W.x);
+      if (sCq.active()) {
+        for (int s = 0; s < 2; ++s) {
+          if (!bs[s]) continue;
+          const int o = ji.offset[s];
+          if (U.sig[s] != 0 || W.sig[s] != 0) {
+            const Vec3 gr = U.sig[s] * W.x + W.sig[s] * U.x;
+            for (int i = 0; i < 3; ++i) sCq.Add(row, o + i, gr[i]);
           } else {
-            AddLocal(sCtw, l, hw, Part::kRotation, Part::kRotation);
+            for (int i = 0; i < 3; ++i) sCq.Declare(row, o + i);
+          }
+          if (U.rot[s] || W.rot[s]) {
+            Quat ge = Quat::Zero();
+            if (U.rot[s]) ge += BtW(bs[s]->e, U.ub[s], W.x);
+            if (W.rot[s]) ge += BtW(bs[s]->e, W.ub[s], U.x);
+            for (int i = 0; i < 4; ++i) sCq.Add(row, o + 3 + i, ge[i]);
+          } else {
+            for (int i = 0; i < 4; ++i) sCq.Declare(row, o + 3 + i);
           }
         }
       }
+      if (need_rates) {
+        double vhv = 0;
+        for (int s = 0; s < 2; ++s) {
+          if (!bs[s]) continue;
+          const int o = ji.offset[s];
+          const bool has_r = U.sig[s] != 0 || W.sig[s] != 0;
+          const bool has_e = U.rot[s] || W.rot[s];
+          const Vec3 hr = U.sig[s] * W.xd + W.sig[s] * U.xd;
+          Quat he = Quat::Zero();
+          if (U.rot[s]) he += U.B[s].transpose() * W.xd + BtW(bs[s]->ed, U.ub[s], W.x);
+          if (W.rot[s]) he += W.B[s].transpose() * U.xd + BtW(bs[s]->ed, W.ub[s], U.x);
+          vhv += bs[s]->rd.dot(hr) + bs[s]->ed.dot(he);
+          if (sCv.active()) {
+            for (int i = 0; i < 3; ++i)
+              if (has_r) sCv.Add(row, o + i, hr[i]); else sCv.Declare(row, o + i);
+            for (int i = 0; i < 4; ++i)
+              if (has_e) sCv.Add(row, o + 3 + i, he[i]); else sCv.Declare(row, o + 3 + i);
+          }
+        }
+        if (out.acc_rhs) out.acc_rhs[row] = -vhv;
+      }
+      if (ctw && lock >= 3) AddDotHessian(U, W, w[row], H, nz);
       ++row;
+    }
+    if (!ctw) continue;
+    if (ji.trans) {
+      JointField uw;  // sum_k w_k (axis k of marker j) over the translational locks
+      Vec3 ub = Vec3::Zero();
+      row = joint_row[k];
+      for (int lock : joint_locks[k]) {
+        if (lock < 3) {
+          uw.x += w[row] * axis[1][lock].x;
+          ub += w[row] * ji.axes[1].col(lock);
+        }
+        ++row;
+      }
+      if (bs[1]) {
+        uw.rot[1] = true;
+        uw.ub[1] = ub;
+        uw.B[1] = BMatrix(bs[1]->e, ub);
+      }
+      AddDotHessian(uw, d, 1.0, H, nz);
+    }
+    // Write the block. The pattern keeps what the joint's equations could touch:
+    // with translational equations everything but the r-r blocks, else the e-e blocks;
+    // blocks that are structurally zero here are declared, not written.
+    static const int kStart[4] = {0, 3, 7, 10};
+    for (int h = 0; h < 4; ++h) {
+      if (!bs[h / 2]) continue;
+      const int oc = ji.offset[h / 2] + (h % 2) * 3, nc_h = h % 2 ? 4 : 3;
+      for (int g = 0; g < 4; ++g) {
+        if (!bs[g / 2]) continue;
+        const int orow = ji.offset[g / 2] + (g % 2) * 3, nr_g = g % 2 ? 4 : 3;
+        const bool in_pattern = ji.trans ? (g % 2 == 1 || h % 2 == 1) : (g % 2 == 1 && h % 2 == 1);
+        assert(in_pattern || !nz[g][h]);
+        if (nz[g][h]) {
+          for (int c2 = 0; c2 < nc_h; ++c2)
+            for (int r2 = 0; r2 < nr_g; ++r2)
+              sCtw.Add(orow + r2, oc + c2, H(kStart[g] + r2, kStart[h] + c2));
+        } else if (in_pattern) {
+          for (int c2 = 0; c2 < nc_h; ++c2)
+            for (int r2 = 0; r2 < nr_g; ++r2) sCtw.Declare(orow + r2, oc + c2);
+        }
+      }
     }
   }
   // Normalisation of the Euler parameters: e^T e - 1 = 0.
@@ -610,6 +861,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   }
 
   // Force elements.
+  Local l;
   for (size_t k = 0; k < model.forces.size(); ++k) {
     const Force& fe = model.forces[k];
     Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
