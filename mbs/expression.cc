@@ -25,6 +25,7 @@
 #include <array>
 #include <cassert>
 #include <cctype>
+#include <cstdint>
 #include <cmath>
 #include <cstdlib>
 #include <iomanip>
@@ -214,17 +215,6 @@ bool IsConstantInT(const T2& a) { return a.d1 == 0 && a.d2 == 0; }
 T2 Chain(double f, double f1, double f2, const T2& a) {
   if (IsConstantInT(a)) return {f, 0, 0};
   return {f, f1 * a.d1, f2 * a.d1 * a.d1 + f1 * a.d2};
-}
-
-// dst = fa * dst, skipping exact zeros (see the file comment).
-inline void Scale(double* dst, double fa, int n) {
-  for (int j = 0; j < n; ++j) dst[j] = dst[j] != 0 ? fa * dst[j] : 0.0;
-}
-// dst = fa * dst + fb * src, skipping exact zeros.
-inline void Combine(double* dst, double fa, const double* src, double fb, int n) {
-  for (int j = 0; j < n; ++j) {
-    dst[j] = (dst[j] != 0 ? fa * dst[j] : 0.0) + (src[j] != 0 ? fb * src[j] : 0.0);
-  }
 }
 
 }  // namespace
@@ -658,86 +648,101 @@ double Expression::EvaluateGradient(const ExpressionInputs& in, ExpressionGradie
   g->d_t = 0;
   if (program_.empty()) return 0.0;
   assert(max_stack_ <= kMaxStack);
-  const int n = num_slots_;
+  // Stack entry k: value v[k], the set of argument slots it depends on (bit j of m[k]),
+  // and its derivatives d[k][j], valid for the slots in m[k] only (the others are never
+  // read, so leaves and literals need no zero-filling and each operation touches only
+  // the slots its result depends on).
   std::array<double, kMaxStack> v;
-  std::array<std::array<double, kMaxArgs>, kMaxStack> d;  // d[k][slot]: derivatives of v[k]
+  std::array<uint32_t, kMaxStack> m;
+  std::array<std::array<double, kMaxArgs>, kMaxStack> d;
   int top = -1;
-  auto leaf = [&](double value, int slot) {
-    v[++top] = value;
-    double* row = d[top].data();
-    for (int j = 0; j < n; ++j) row[j] = 0.0;
-    if (slot >= 0) row[slot] = 1.0;
+  // Slot j of operand row `row` with slot set `mask`, as a term: 0 when the operand does
+  // not depend on j or its derivative is exactly 0 (even if the factor f is infinite).
+  auto term = [](uint32_t mask, const double* row, int j, double f) {
+    return ((mask >> j) & 1u) != 0 && row[j] != 0 ? f * row[j] : 0.0;
+  };
+  // top-1 <- fa * (top-1) + fb * (top), over the union of their slots.
+  auto combine = [&](double fa, double fb) {
+    --top;
+    const uint32_t ma = m[top], mb = m[top + 1];
+    double* da = d[top].data();
+    const double* db = d[top + 1].data();
+    for (uint32_t bits = ma | mb; bits != 0; bits &= bits - 1) {
+      const int j = __builtin_ctz(bits);
+      da[j] = term(ma, da, j, fa) + term(mb, db, j, fb);
+    }
+    m[top] = ma | mb;
+  };
+  auto scale = [&](double fa) {
+    double* da = d[top].data();
+    for (uint32_t bits = m[top]; bits != 0; bits &= bits - 1) {
+      const int j = __builtin_ctz(bits);
+      da[j] = da[j] != 0 ? fa * da[j] : 0.0;
+    }
   };
   for (const Op& op : program_) {
     switch (op.code) {
-      case kConst: leaf(op.value, -1); break;
-      case kParam: assert(in.parameters != nullptr); leaf(in.parameters[op.index], op.slot); break;
-      case kMeasure: assert(in.measures != nullptr); leaf(in.measures[op.index], op.slot); break;
-      case kTime: leaf(in.t, op.slot); break;
+      case kConst: v[++top] = op.value; m[top] = 0; break;
+      case kParam:
+        assert(in.parameters != nullptr);
+        v[++top] = in.parameters[op.index];
+        m[top] = 1u << op.slot;
+        d[top][op.slot] = 1.0;
+        break;
+      case kMeasure:
+        assert(in.measures != nullptr);
+        v[++top] = in.measures[op.index];
+        m[top] = 1u << op.slot;
+        d[top][op.slot] = 1.0;
+        break;
+      case kTime: v[++top] = in.t; m[top] = 1u << op.slot; d[top][op.slot] = 1.0; break;
       case kAdd: {
-        --top;
-        v[top] += v[top + 1];
-        double* a = d[top].data();
-        const double* b = d[top + 1].data();
-        for (int j = 0; j < n; ++j) a[j] += b[j];
+        const double b = v[top];
+        combine(1.0, 1.0);
+        v[top] += b;
         break;
       }
       case kSub: {
-        --top;
-        v[top] -= v[top + 1];
-        double* a = d[top].data();
-        const double* b = d[top + 1].data();
-        for (int j = 0; j < n; ++j) a[j] -= b[j];
+        const double b = v[top];
+        combine(1.0, -1.0);
+        v[top] -= b;
         break;
       }
       case kMul: {
-        --top;
-        const double a = v[top], b = v[top + 1];
+        const double a = v[top - 1], b = v[top];
+        combine(b, a);
         v[top] = a * b;
-        double* da = d[top].data();
-        const double* db = d[top + 1].data();
-        for (int j = 0; j < n; ++j) da[j] = b * da[j] + a * db[j];
         break;
       }
       case kDiv: {
-        --top;
-        const double b = v[top + 1];
-        const double c = v[top] / b;
+        const double b = v[top];
+        const double c = v[top - 1] / b;
+        combine(1.0 / b, -c / b);
         v[top] = c;
-        double* da = d[top].data();
-        const double* db = d[top + 1].data();
-        for (int j = 0; j < n; ++j) da[j] = (da[j] - c * db[j]) / b;
         break;
       }
-      case kNeg: {
-        v[top] = -v[top];
-        double* a = d[top].data();
-        for (int j = 0; j < n; ++j) a[j] = -a[j];
-        break;
-      }
+      case kNeg: v[top] = -v[top]; scale(-1.0); break;
       case kSpline: {
         assert(in.splines != nullptr && in.splines[op.index] != nullptr);
         double f1 = 0;
         v[top] = in.splines[op.index]->Evaluate(v[top], &f1, nullptr);
-        Scale(d[top].data(), f1, n);
+        scale(f1);
         break;
       }
       case kPow:
       case kPowFn: {
-        --top;
         double fa, fb;
-        v[top] = PowPartials(v[top], v[top + 1], &fa, &fb);
-        Combine(d[top].data(), fa, d[top + 1].data(), fb, n);
+        const double c = PowPartials(v[top - 1], v[top], &fa, &fb);
+        combine(fa, fb);
+        v[top] = c;
         break;
       }
       case kAtan2: {
-        --top;
-        const double y = v[top], x = v[top + 1];
+        const double y = v[top - 1], x = v[top];
         const double r2 = x * x + y * y;
-        v[top] = std::atan2(y, x);
         // d atan2(y, x) = (x dy - y dx) / (x^2 + y^2); 0 at the origin by convention.
-        const double fy = r2 > 0 ? x / r2 : 0.0, fx = r2 > 0 ? -y / r2 : 0.0;
-        Combine(d[top].data(), fy, d[top + 1].data(), fx, n);
+        combine(r2 > 0 ? x / r2 : 0.0, r2 > 0 ? -y / r2 : 0.0);
+        v[top] = std::atan2(y, x);
         break;
       }
       case kMin:
@@ -748,7 +753,11 @@ double Expression::EvaluateGradient(const ExpressionInputs& in, ExpressionGradie
         const bool first = op.code == kMin ? !(b < a) : !(a < b);
         if (!first) {
           v[top] = b;
-          d[top] = d[top + 1];
+          m[top] = m[top + 1];
+          for (uint32_t bits = m[top]; bits != 0; bits &= bits - 1) {
+            const int j = __builtin_ctz(bits);
+            d[top][j] = d[top + 1][j];
+          }
         }
         break;
       }
@@ -756,18 +765,21 @@ double Expression::EvaluateGradient(const ExpressionInputs& in, ExpressionGradie
         top -= 4;
         double p[5];
         v[top] = SmoothStep(v[top], v[top + 1], v[top + 2], v[top + 3], v[top + 4], p);
-        double* out = d[top].data();
-        for (int j = 0; j < n; ++j) {
+        uint32_t all = 0;
+        for (int i = 0; i < 5; ++i) all |= m[top + i];
+        for (uint32_t bits = all; bits != 0; bits &= bits - 1) {
+          const int j = __builtin_ctz(bits);
           double s = 0;
-          for (int i = 0; i < 5; ++i) s += p[i] != 0 ? p[i] * d[top + i][j] : 0.0;
-          out[j] = s;
+          for (int i = 0; i < 5; ++i) s += term(m[top + i], d[top + i].data(), j, p[i]);
+          d[top][j] = s;
         }
+        m[top] = all;
         break;
       }
       default: {
         double f1;
         v[top] = Unary<false>(op.code, v[top], op.value, &f1, nullptr);
-        Scale(d[top].data(), f1, n);
+        scale(f1);
         break;
       }
     }
@@ -776,9 +788,10 @@ double Expression::EvaluateGradient(const ExpressionInputs& in, ExpressionGradie
   const int nt = uses_time_ ? 1 : 0;
   const int nm = static_cast<int>(measures_used_.size());
   const int np = static_cast<int>(parameters_used_.size());
-  if (uses_time_) g->d_t = d[0][0];
-  for (int k = 0; k < nm; ++k) g->d_measures[k] = d[0][nt + k];
-  for (int k = 0; k < np; ++k) g->d_parameters[k] = d[0][nt + nm + k];
+  auto slot = [&](int j) { return ((m[0] >> j) & 1u) != 0 ? d[0][j] : 0.0; };
+  if (uses_time_) g->d_t = slot(0);
+  for (int k = 0; k < nm; ++k) g->d_measures[k] = slot(nt + k);
+  for (int k = 0; k < np; ++k) g->d_parameters[k] = slot(nt + nm + k);
   return v[0];
 }
 
