@@ -20,6 +20,7 @@
 #include <utility>
 
 #include "mbs/geometry.h"
+#include "mbs/mesh.h"
 #include "mbs/kinematics.h"
 
 namespace mbdae::mbs {
@@ -695,9 +696,7 @@ class Loader {
     const Shape shape = Enum<Shape>(Required(node, element, "shape"), element, "shape",
                                     {{"sphere", kSphere}, {"cylinder", kCylinder}, {"cone", kCone}, {"box", kBox},
                                      {"mesh", kMesh}});
-    if (shape == kMesh) {
-      Fail(node["shape"], element, "geometry shape 'mesh' is not supported yet (meshes come with a later release)");
-    }
+    if (shape == kMesh) return MeshGeometry(node, element);
     switch (shape) {
       case kSphere: CheckKeys(node, element, {"shape", "radius", "density"}, "geometry"); break;
       case kCylinder:
@@ -728,6 +727,42 @@ class Loader {
       case kCone: return ConeMass(radius, length, density);
       default: return BoxMass(size, density);
     }
+  }
+
+  // A triangle mesh (STL or OBJ; the file relative to the model file) scaled by
+  // `scale`: with a density, mass and inertia about its centre of mass in mesh axes.
+  // The body's axes are the mesh axes; its markers are relative to the centre of mass.
+  std::optional<MassProperties> MeshGeometry(const YAML::Node& node, const std::string& element) const {
+    CheckKeys(node, element, {"shape", "file", "scale", "density"}, "geometry");
+    const YAML::Node f = Required(node, element, "file");
+    const std::string name = String(f, element, "geometry file");
+    std::filesystem::path path(name);
+    if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
+    double scale = 1.0;
+    if (const YAML::Node s = node["scale"]) {
+      scale = LoadTimeNumber(s, element, "geometry scale");
+      if (!(scale > 0)) Fail(s, element, "geometry scale must be > 0, got " + Num(scale));
+    }
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+      Fail(f, element, "mesh file '" + name + "' not found (relative paths are relative to the model file)");
+    const YAML::Node d = node["density"];
+    double density = 0;
+    if (d) {
+      density = LoadTimeNumber(d, element, "geometry density");
+      if (!(density >= 0)) Fail(d, element, "geometry density must be >= 0, got " + Num(density));
+    }
+    try {
+      // Read and checked (closed, consistently oriented) even without a density.
+      const MeshBodyProperties mesh = LoadMeshBody(path.string(), density > 0 ? density : 1.0, scale);
+      if (!d) return std::nullopt;
+      MassProperties mp = mesh.mass;
+      if (density == 0) mp = MassProperties{};
+      return mp;
+    } catch (const std::exception& e) {
+      Fail(f, element, std::string("mesh: ") + e.what());
+    }
+    return std::nullopt;
   }
 
   // ---- measures, joints, forces -------------------------------------------------

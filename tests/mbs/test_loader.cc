@@ -284,7 +284,7 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 1\nformat: 1\n"), "m.yaml:2:1: model: key 'format' is given twice"));
   EXPECT_EQ(LoadError("format: 1\nsplines: {}\n"), "");  // an empty splines block loads
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies:\n  - {name: b, geometry: {shape: mesh, file: a.stl}}\n"),
-                       "body 'b': geometry shape 'mesh' is not supported yet"));
+                       "body 'b': mesh file 'a.stl' not found"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: bushing, i: b.cm}\n"),
                        "m.yaml:4:21: force 'f': force type 'bushing' is not supported yet"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: user, i: b.cm}\n"),
@@ -295,7 +295,7 @@ TEST(Loader, MiscErrors) {
   const std::string t = LoadError(
       "format: 1\nbodies: [{name: b}]\nmeasures: [{name: x1, type: translational, i: b.cm, component: x}]\n"
       "forces: [{name: f, type: force, i: b.cm, value: [\"-3*x1\", 0, t]}]\n");
-  EXPECT_TRUE(Contains(t, "force 'f': 'value': in expression '-3*x1': measure 'x1' at column 4 is not supported yet")) << t;
+  EXPECT_TRUE(Contains(t, "force 'f': 'value': in expression '-3*x1': measure 'x1' at column 4 cannot be used here")) << t;
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b, mass: 1, nmae: c}]\n"),
                        "m.yaml:2:29: body 'b': unknown key 'nmae'; did you mean 'name'?"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}, {name: c}]\njoints: [{name: j, type: revolute, i: b.cm, j: b.cm}]\n"),
@@ -559,6 +559,38 @@ TEST(LoaderSplines, DataFileMistakes) {
   write("spline_data.csv", "x,y\n0,0\n");
   e = error();
   EXPECT_TRUE(Contains(e, "spline_data.csv' has 1 point after 1 header line; a spline needs at least 2")) << e;
+}
+
+}  // namespace
+}  // namespace mbdae::mbs
+
+namespace mbdae::mbs {
+namespace {
+
+TEST(LoaderMesh, MassAndInertiaFromTheMesh) {
+  const Model m = LoadModel(kSource + "/tests/mbs/models/mesh_body.yaml");
+  ASSERT_EQ(m.bodies.size(), 2u);
+  // The box 2 x 1 x 0.5 scaled by 0.1 with density 1000: the closed form of a box.
+  const MassProperties box = BoxMass(Vec3(0.2, 0.1, 0.05), 1000);
+  EXPECT_NEAR(m.bodies[0].mass, 1.0, 1e-12);
+  EXPECT_NEAR(m.bodies[0].mass, box.mass, 1e-12);
+  EXPECT_LT((m.bodies[0].inertia - box.inertia).norm(), 1e-12 * box.inertia.norm());
+  // A mesh without a density only shows the body: the explicit values stay.
+  EXPECT_EQ(m.bodies[1].mass, 2.0);
+  EXPECT_EQ(m.bodies[1].inertia, Mat3::Identity());
+}
+
+TEST(LoaderMesh, Errors) {
+  // A missing file names the file; a bad scale names the key.
+  const std::string base = "format: 1\nbodies:\n  - name: b\n    geometry: {shape: mesh, ";
+  std::string e = LoadError(base + "file: nowhere.stl, density: 1}\n");
+  EXPECT_TRUE(Contains(e, "m.yaml:4:")) << e;
+  EXPECT_TRUE(Contains(e, "body 'b'")) << e;
+  EXPECT_TRUE(Contains(e, "mesh file 'nowhere.stl' not found")) << e;
+  e = LoadError(base + "file: nowhere.stl, scale: -1}\n");
+  EXPECT_TRUE(Contains(e, "geometry scale must be > 0")) << e;
+  e = LoadError(base + "file: x.stl, radius: 1}\n");
+  EXPECT_TRUE(Contains(e, "unknown key 'radius'")) << e;
 }
 
 }  // namespace
