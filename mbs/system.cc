@@ -42,35 +42,62 @@ using Mat43 = Eigen::Matrix<double, 4, 3>;
 
 // B(e, u) = d(A(e) u)/de = 2 [e0 u + e_v x u, (e_v.u) I + e_v u^T - u e_v^T - e0 skew(u)];
 // B(e, u) e = 2 A(e) u.
-Mat34 BMatrix(const Quat& e, const Vec3& u) {
+#define MBDAE_INLINE inline __attribute__((always_inline))
+
+MBDAE_INLINE Mat34 BMatrix(const Quat& e, const Vec3& u) {
   const Vec3 ev = e.tail<3>();
+  const double e0 = e[0];
   Mat34 b;
-  b.col(0) = 2 * (e[0] * u + ev.cross(u));
-  b.rightCols<3>() =
-      2 * (ev.dot(u) * Mat3::Identity() + ev * u.transpose() - u * ev.transpose() - e[0] * Skew(u));
+  b.col(0) = 2 * (e0 * u + ev.cross(u));
+  Mat3 m = ev * u.transpose() - u * ev.transpose();
+  m.diagonal().array() += ev.dot(u);
+  // - e0 skew(u)
+  m(0, 1) += e0 * u[2];
+  m(0, 2) -= e0 * u[1];
+  m(1, 0) -= e0 * u[2];
+  m(1, 2) += e0 * u[0];
+  m(2, 0) += e0 * u[1];
+  m(2, 1) -= e0 * u[0];
+  b.rightCols<3>() = 2 * m;
   return b;
+}
+
+// X^T J Y (4x4) for 3x4 X, Y.
+MBDAE_INLINE Mat4 XtJY(const Mat34& X, const Mat3& J, const Mat34& Y) {
+  Mat34 jy;
+  for (int c = 0; c < 4; ++c) jy.col(c) = J.col(0) * Y(0, c) + J.col(1) * Y(1, c) + J.col(2) * Y(2, c);
+  Mat4 r;
+  for (int c = 0; c < 4; ++c)
+    for (int k = 0; k < 4; ++k) r(k, c) = X.col(k).dot(jy.col(c));
+  return r;
 }
 
 // Closed forms of products with B(e, u), without forming it (same values up to rounding):
 //   B(e, u)^T w = 2 [e0 u.w + e_v.(u x w);  (e_v.u) w + (e_v.w) u - (u.w) e_v + e0 u x w],
 //   B(e, u) x   = 2 [x0 (e0 u + e_v x u) + (e_v.u) x_v + (u.x_v) e_v - (e_v.x_v) u - e0 u x x_v].
-inline Quat BtW(const Quat& e, const Vec3& u, const Vec3& w) {
-  const Vec3 ev = e.tail<3>();
-  const Vec3 uxw = u.cross(w);
-  const double uw = u.dot(w);
+MBDAE_INLINE Quat BtW(const Quat& e, const Vec3& u, const Vec3& w) {
+  // Scalar code: a 3-vector expression written into a 4-vector stalls store forwarding.
+  const double e0 = e[0], e1 = e[1], e2 = e[2], e3 = e[3];
+  const double c0 = u[1] * w[2] - u[2] * w[1], c1 = u[2] * w[0] - u[0] * w[2],
+               c2 = u[0] * w[1] - u[1] * w[0];  // u x w
+  const double uw = u[0] * w[0] + u[1] * w[1] + u[2] * w[2];
+  const double eu = e1 * u[0] + e2 * u[1] + e3 * u[2];
+  const double ew = e1 * w[0] + e2 * w[1] + e3 * w[2];
   Quat g;
-  g[0] = 2 * (e[0] * uw + ev.dot(uxw));
-  g.tail<3>() = 2 * (ev.dot(u) * w + ev.dot(w) * u - uw * ev + e[0] * uxw);
+  g[0] = 2 * (e0 * uw + e1 * c0 + e2 * c1 + e3 * c2);
+  g[1] = 2 * (eu * w[0] + ew * u[0] - uw * e1 + e0 * c0);
+  g[2] = 2 * (eu * w[1] + ew * u[1] - uw * e2 + e0 * c1);
+  g[3] = 2 * (eu * w[2] + ew * u[2] - uw * e3 + e0 * c2);
   return g;
 }
-inline Vec3 BTimes(const Quat& e, const Vec3& u, const Quat& x) {
+MBDAE_INLINE Vec3 BTimes(const Quat& e, const Vec3& u, const Quat& x) {
   const Vec3 ev = e.tail<3>(), xv = x.tail<3>();
   return 2 * (x[0] * (e[0] * u + ev.cross(u)) + ev.dot(u) * xv + u.dot(xv) * ev -
               ev.dot(xv) * u - e[0] * u.cross(xv));
 }
 // The Hessian of w . A(e) u (B(e, u)^T w = H e), closed form:
 //   H = 2 [u.w, (u x w)^T;  u x w, u w^T + w u^T - (u.w) I].
-inline Mat4 HessDot(const Vec3& u, const Vec3& w) {
+MBDAE_INLINE Mat4 HessDot(const Vec3& u, const Vec3& w) {
   const double uw = u.dot(w);
   const Vec3 uxw = u.cross(w);
   Mat4 h;
@@ -202,15 +229,15 @@ class Sink {
     if (values_ && !recording_) std::fill(values_, values_ + pattern_.nnz(), 0.0);
   }
   bool active() const { return values_ != nullptr || recording_; }
-  void Add(int r, int c, double v) {
-    if (recording_) {
+  MBDAE_INLINE void Add(int r, int c, double v) {
+    if (__builtin_expect(recording_, false)) {
       Record(r, c, true);
     } else {
       assert(cursor_ < static_cast<int>(position_.size()));
       values_[position_[cursor_++]] += v;
     }
   }
-  void Declare(int r, int c) {
+  MBDAE_INLINE void Declare(int r, int c) {
     if (recording_) Record(r, c, false);
   }
   void End() {
@@ -260,12 +287,18 @@ struct JointInfo {
 //   x = sum_s (sig[s] r_s + A(e_s) ub[s])  (+ a constant from ground),
 // so dx/dr_s = sig[s] I and dx/de_s = B[s] = B(e_s, ub[s]) (rot[s]); xd = dx/dt.
 // sig and rot depend only on the model, never on values.
+// (Deliberately not initialised: Clear() sets what every use reads; ub, B and xd are
+// read only where rot, need_b and need_rates say they were set.)
 struct JointField {
-  Vec3 x = Vec3::Zero(), xd = Vec3::Zero();
-  double sig[2] = {0, 0};
-  bool rot[2] = {false, false};
-  Vec3 ub[2] = {Vec3::Zero(), Vec3::Zero()};
+  Vec3 x, xd;
+  double sig[2];
+  bool rot[2];
+  Vec3 ub[2];
   Mat34 B[2];
+  void Clear() {
+    sig[0] = sig[1] = 0;
+    rot[0] = rot[1] = false;
+  }
 };
 
 // H += wgt * (Hessian of U . W) in a joint's 14 local coordinates:
@@ -668,30 +701,31 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     const Mat3& J = body.inertia;
     if (sM.active()) {
       for (int k = 0; k < 3; ++k) sM.Add(o + k, o + k, body.mass);
-      const Mat4 Me = 4 * G.transpose() * J * G;
+      const Mat4 Me = 4 * XtJY(G, J, G);
       for (int c = 0; c < 4; ++c)
         for (int r = 0; r < 4; ++r) sM.Add(o + 3 + r, o + 3 + c, Me(r, c));
     }
     if (sMa.active()) {
       // d(4 G^T J G a_e)/de = 4 dG^T/de (J G a_e) + 4 G^T J d(G a_e)/de
       const Quat ae = Eigen::Map<const Quat>(a + o + 3);
-      const Mat4 K = 4 * GtJacobian(J * G * ae) - 4 * G.transpose() * J * GMatrix(ae);
+      const Mat4 K = 4 * GtJacobian(J * (G * ae)) - 4 * XtJY(G, J, GMatrix(ae));
       for (int c = 0; c < 4; ++c)
         for (int r = 0; r < 4; ++r) sMa.Add(o + 3 + r, o + 3 + c, K(r, c));
     }
     const Vec3 ge = Gd * e;  // = -G e' = -omega'/2
     if (out.force) {
       Eigen::Map<Vec3>(out.force + o) += body.mass * model.gravity;
-      Eigen::Map<Quat>(out.force + o + 3) += 8 * Gd.transpose() * J * ge;
+      const Vec3 jge = J * ge;
+      Eigen::Map<Quat>(out.force + o + 3) += 8 * (Gd.transpose() * jge);
     }
     if (sKq.active()) {
-      const Mat4 K = 8 * Gd.transpose() * J * Gd;
+      const Mat4 K = 8 * XtJY(Gd, J, Gd);
       for (int c = 0; c < 4; ++c)
         for (int r = 0; r < 4; ++r) sKq.Add(o + 3 + r, o + 3 + c, K(r, c));
     }
     if (sKv.active()) {
       // d(8 G(e')^T J G(e') e)/de' with G(e') e = -G(e) e'
-      const Mat4 K = 8 * GtJacobian(J * ge) - 8 * Gd.transpose() * J * G;
+      const Mat4 K = 8 * GtJacobian(J * ge) - 8 * XtJY(Gd, J, G);
       for (int c = 0; c < 4; ++c)
         for (int r = 0; r < 4; ++r) sKv.Add(o + 3 + r, o + 3 + c, K(r, c));
     }
@@ -725,6 +759,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       }
     };
     JointField d, axis[2][3];
+    d.Clear();
     Vec3 P[2];
     for (int s = 0; s < 2; ++s) {
       if (bs[s]) {
@@ -738,6 +773,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       for (int c = 0; c < 3; ++c) {
         if (!ji.need_axis[s][c]) continue;
         JointField& f = axis[s][c];
+        f.Clear();
         if (bs[s]) {
           f.rot[s] = true;
           f.ub[s] = ji.axes[s].col(c);
@@ -806,6 +842,8 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     if (!ctw) continue;
     if (ji.trans) {
       JointField uw;  // sum_k w_k (axis k of marker j) over the translational locks
+      uw.Clear();
+      uw.x.setZero();
       Vec3 ub = Vec3::Zero();
       row = joint_row[k];
       for (int lock : joint_locks[k]) {
