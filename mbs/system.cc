@@ -466,13 +466,16 @@ struct MultibodySystem::Impl {
   }
 
   // The force (or torque) vector of element k on marker i, world axes, and its
-  // derivatives with respect to the local coordinates and rates. Returns false if a
+  // derivatives with respect to the local coordinates and rates (skipped when dfdq is
+  // null; then dfdv must be null too). Returns false if a
   // spring has zero length (the values are then finite but meaningless).
   bool ForceVector(int k, const ForceValues& fv, const Local& l, Vec3* f, Mat3x14* dfdq,
                    Mat3x14* dfdv) const {
     const Force& fe = model.forces[k];
-    dfdq->setZero();
-    dfdv->setZero();
+    if (dfdq) {
+      dfdq->setZero();
+      dfdv->setZero();
+    }
     if (fe.type == ForceType::kSpringDamper) {
       const Field d = Separation(fe.i, fe.j);
       const Vec3 dv = d.Value(l);
@@ -485,6 +488,7 @@ struct MultibodySystem::Impl {
       const double ld = n.dot(ddot);
       const double s = -fv.k * (len - fv.l0) - fv.c * ld + fv.preload;
       *f = s * n;
+      if (!dfdq) return ok;
       const Mat3 dn = (Mat3::Identity() - n * n.transpose()) / len;  // dn/dd
       const Eigen::Matrix<double, 1, 14> dl = n.transpose() * jd;
       const Eigen::Matrix<double, 1, 14> dld =
@@ -505,7 +509,7 @@ struct MultibodySystem::Impl {
     t.u = model.markers[marker].orientation * fv.value;
     const Field u = One(t);
     *f = u.Value(l);
-    *dfdq = u.Jacobian(l);
+    if (dfdq) *dfdq = u.Jacobian(l);
     return true;
   }
 
@@ -905,7 +909,10 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
     Vec3 f;
     Mat3x14 dfdq, dfdv;
-    if (!ForceVector(static_cast<int>(k), force_values[k], l, &f, &dfdq, &dfdv) && spring_ok) {
+    const bool derivs = sKq.active() || sKv.active();
+    if (!ForceVector(static_cast<int>(k), force_values[k], l, &f, derivs ? &dfdq : nullptr,
+                     derivs ? &dfdv : nullptr) &&
+        spring_ok) {
       spring_ok = false;
       bad_spring = static_cast<int>(k);
     }
@@ -913,7 +920,11 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     const bool depv = ForceDependsOnV(static_cast<int>(k));
     const bool torque = fe.type == ForceType::kTorque;
     Vec14 gq = Vec14::Zero();
-    Mat14 kq = Mat14::Zero(), kv = Mat14::Zero();
+    Mat14 kq, kv;
+    if (derivs) {
+      kq.setZero();
+      kv.setZero();
+    }
     for (int s = 0; s < 2; ++s) {
       if (l.offset[s] < 0) continue;
       const double sign = s == 0 ? 1.0 : -1.0;
@@ -925,16 +936,19 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       Mat4 Kown;     // dQ_e/de_s at fixed F
       if (torque) {
         P = 2 * G.transpose() * A.transpose();
-        Kown = 2 * GtJacobian(A.transpose() * fs) + 2 * G.transpose() * BTransposeMatrix(e, fs);
+        if (derivs)
+          Kown = 2 * GtJacobian(A.transpose() * fs) + 2 * G.transpose() * BTransposeMatrix(e, fs);
       } else {
         const Vec3 sp = model.markers[s == 0 ? fe.i : fe.j].position;
         const Mat3 S = Skew(sp);
         P = 2 * G.transpose() * S * A.transpose();
         gq.segment<3>(7 * s) += fs;
-        Kown = 2 * GtJacobian(S * A.transpose() * fs) +
-               2 * G.transpose() * S * BTransposeMatrix(e, fs);
+        if (derivs)
+          Kown = 2 * GtJacobian(S * A.transpose() * fs) +
+                 2 * G.transpose() * S * BTransposeMatrix(e, fs);
       }
       gq.segment<4>(7 * s + 3) += P * fs;
+      if (!derivs) continue;
       kq.block<4, 4>(7 * s + 3, 7 * s + 3) += Kown;
       if (!torque) {
         kq.block<3, 14>(7 * s, 0) += sign * dfdq;
