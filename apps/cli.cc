@@ -67,6 +67,8 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     cl.command = Command::kInfo;
   else if (first == "check")
     cl.command = Command::kCheck;
+  else if (first == "convert")
+    cl.command = Command::kConvert;
   else
     throw UsageError("unknown command '" + first + "'", true);
   ++i;
@@ -115,7 +117,8 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
         cl.parameter_overrides[s.substr(0, eq)] = ParseNumber("--set " + s, s.substr(eq + 1));
       }
     } else if (arg == "-o" || arg == "--output") {
-      only_simulate();
+      if (!sim && cl.command != Command::kConvert)
+        throw UsageError("option " + arg + " is only for `simulate` and `convert`", true);
       cl.output_path = value();
       if (cl.output_path.empty()) throw UsageError(arg + ": empty file name");
     } else if (arg == "--integrator") {
@@ -188,7 +191,7 @@ std::string DefaultResultsPath(const std::string& model_path) {
     std::string ext = model_path.substr(dot);
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    if (ext == ".yaml" || ext == ".yml" || ext == ".json") return model_path.substr(0, dot) + ".h5";
+    if (ext == ".yaml" || ext == ".yml" || ext == ".json" || ext == ".fds") return model_path.substr(0, dot) + ".h5";
   }
   return model_path + ".h5";
 }

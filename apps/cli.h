@@ -25,14 +25,15 @@ class UsageError : public std::runtime_error {
   bool show_usage_;
 };
 
-enum class Command { kSimulate, kInfo, kCheck };
+enum class Command { kSimulate, kInfo, kCheck, kConvert };
 
 struct CommandLine {
   Command command = Command::kSimulate;
   bool help = false;
   bool version = false;
   std::string model_path;
-  std::string output_path;  // empty: DefaultResultsPath(model_path)
+  // simulate: empty means DefaultResultsPath(model_path); convert: empty means stdout.
+  std::string output_path;
   driver::SettingsOverrides overrides;
   std::map<std::string, double> parameter_overrides;
   bool quiet = false;
@@ -44,7 +45,7 @@ struct CommandLine {
 // right after it. Throws UsageError naming the offending argument.
 CommandLine ParseCommandLine(const std::vector<std::string>& args);
 
-// MODEL.yaml|.yml|.json -> MODEL.h5, next to the model; other names get .h5 appended.
+// MODEL.yaml|.yml|.json|.fds -> MODEL.h5, next to the model; other names get .h5 appended.
 std::string DefaultResultsPath(const std::string& model_path);
 
 // Parses a whole argument as a finite number; throws UsageError naming the option.

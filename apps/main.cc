@@ -3,7 +3,9 @@
 //   mbdae simulate MODEL.yaml [options]   integrate and write the HDF5 results file
 //   mbdae info MODEL.yaml [--json]        counts and names
 //   mbdae check MODEL.yaml                load, assemble, check determinacy
+//   mbdae convert MODEL.fds [-o OUT.yaml] the model in this project's format
 //
+// MODEL may be a FreeDyn model file (.fds, any letter case) for every command.
 // Output: progress on stderr, the summary and `info`/`check` reports on stdout, errors
 // on stderr prefixed "mbdae: error: ". Exit codes: 0 done, 2 bad input (nothing
 // written), 3 solver failed (file kept, status failed), 1 anything else.
@@ -22,7 +24,9 @@
 
 #include "apps/cli.h"
 #include "driver/simulation.h"
+#include "mbs/freedyn.h"
 #include "mbs/loader.h"
+#include "mbs/model_writer.h"
 
 namespace mbdae::app {
 namespace {
@@ -35,6 +39,7 @@ const char* kUsage =
     "                 [--set NAME=VALUE ...] [--quiet]\n"
     "  mbdae info MODEL.yaml [--json]\n"
     "  mbdae check MODEL.yaml\n"
+    "  mbdae convert MODEL.fds|MODEL.yaml [-o OUT.yaml] [--set NAME=VALUE ...]\n"
     "  mbdae --help | --version\n";
 
 const char* kHelp =
@@ -61,6 +66,10 @@ const char* kHelp =
     "info: counts (bodies, coordinates, constraint equations, redundant ones, degrees of\n"
     "freedom, joints, measures, forces, parameters) and names; --json prints JSON.\n"
     "check: loads and assembles the model and checks that its motion is determined.\n"
+    "convert: writes the model in this project's YAML format (format 1) to OUT.yaml, or\n"
+    "to stdout without -o; a FreeDyn file (.fds) is translated, a YAML file normalised.\n"
+    "\n"
+    "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md).\n"
     "\n"
     "exit codes: 0 done; 2 bad input (nothing written); 3 the solver failed (the rows up\n"
     "to the failure are kept, status 'failed'); 1 anything else.\n";
@@ -78,7 +87,7 @@ mbs::Model Load(const CommandLine& cl) {
   RequireReadable(cl.model_path);
   mbs::LoadOptions lo;
   lo.parameter_overrides = cl.parameter_overrides;
-  return mbs::LoadModel(cl.model_path, lo);
+  return mbs::LoadAnyModel(cl.model_path, lo);
 }
 
 // Prefixes messages that do not name the model file yet.
@@ -106,6 +115,21 @@ int RunCheck(const CommandLine& cl) {
             << info.degrees_of_freedom << " degrees of freedom, " << info.redundant.size()
             << " redundant constraint equations\n"
             << asmb.Report() << "\n";
+  return 0;
+}
+
+int RunConvert(const CommandLine& cl) {
+  if (!cl.output_path.empty() && cl.output_path == cl.model_path)
+    throw UsageError("convert: the output file is the model file itself ('" + cl.model_path + "')");
+  const mbs::Model model = Load(cl);
+  mbs::ModelWriterOptions wo;
+  wo.source = cl.model_path;
+  if (cl.output_path.empty()) {
+    std::cout << mbs::WriteModelYaml(model, wo) << std::flush;
+  } else {
+    mbs::WriteModelFile(model, cl.output_path, wo);
+    if (!cl.quiet) std::cerr << "mbdae: wrote " << cl.output_path << "\n";
+  }
   return 0;
 }
 
@@ -160,6 +184,7 @@ int Run(int argc, char** argv) {
       case Command::kSimulate: return RunSimulate(cl);
       case Command::kInfo: return RunInfo(cl);
       case Command::kCheck: return RunCheck(cl);
+      case Command::kConvert: return RunConvert(cl);
     }
   } catch (const driver::InputError& e) {
     throw driver::InputError(NameFile(cl.model_path, e.what()));

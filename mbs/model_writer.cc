@@ -1,0 +1,256 @@
+// mbs::Model -> model file text (YAML, format 1). See model_writer.h.
+#include "mbs/model_writer.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
+
+#include "mbs/kinematics.h"
+
+namespace mbdae::mbs {
+
+namespace {
+
+// Shortest of 15 or 17 significant digits that reads back exactly.
+std::string Num(double x) {
+  if (x == 0) return "0";  // also -0
+  for (int digits : {15, 17}) {
+    std::ostringstream s;
+    s << std::setprecision(digits) << x;
+    if (digits == 17 || std::strtod(s.str().c_str(), nullptr) == x) return s.str();
+  }
+  return "0";
+}
+
+// A YAML double-quoted scalar.
+std::string Quoted(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\x%02x", c);
+          out += buf;
+        } else {
+          out += static_cast<char>(c);
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string Vector(const Vec3& v) { return "[" + Num(v[0]) + ", " + Num(v[1]) + ", " + Num(v[2]) + "]"; }
+
+// An expression: its text (quoted), or the number of an expression made with Constant().
+std::string Expr(const Expression& e) {
+  if (e.text().empty()) return Num(e.Evaluate(static_cast<const double*>(nullptr)));
+  char* end = nullptr;
+  const double x = std::strtod(e.text().c_str(), &end);
+  if (end == e.text().c_str() + e.text().size() && std::isfinite(x)) return Num(x);
+  return Quoted(e.text());
+}
+
+std::string Orientation(const Quat& q) {
+  return "[" + Num(q[0]) + ", " + Num(q[1]) + ", " + Num(q[2]) + ", " + Num(q[3]) + "]";
+}
+
+bool IsIdentity(const Mat3& R) { return (R - Mat3::Identity()).cwiseAbs().maxCoeff() == 0; }
+
+// The local part of a marker's full name "BODY.NAME".
+std::string Local(const std::string& full) {
+  const size_t dot = full.find('.');
+  return dot == std::string::npos ? full : full.substr(dot + 1);
+}
+
+void WriteMarkers(std::ostringstream& s, const Model& model, int body, const char* indent) {
+  bool any = false;
+  for (size_t k = 0; k < model.markers.size(); ++k) {
+    const Marker& m = model.markers[k];
+    if (m.body != body) continue;
+    if (body < 0 && k == 0) continue;                                   // ground.O
+    if (body >= 0 && static_cast<int>(k) == model.bodies[body].cm_marker) continue;  // BODY.cm
+    if (!any) s << indent << "markers:\n";
+    any = true;
+    s << indent << "  " << Local(m.name) << ": {position: " << Vector(m.position);
+    if (!IsIdentity(m.orientation)) s << ", orientation: " << Orientation(QuaternionFromMatrix(m.orientation));
+    s << "}\n";
+  }
+}
+
+const char* InterpolationKey(Interpolation kind) { return InterpolationName(kind); }
+
+const char* JointTypeName(JointType t) {
+  switch (t) {
+    case JointType::kFixed: return "fixed";
+    case JointType::kSpherical: return "spherical";
+    case JointType::kRevolute: return "revolute";
+    case JointType::kPrismatic: return "prismatic";
+    case JointType::kCylindrical: return "cylindrical";
+    case JointType::kUniversal: return "universal";
+    case JointType::kPlanar: return "planar";
+    default: return "generic";
+  }
+}
+
+}  // namespace
+
+std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options) {
+  std::ostringstream s;
+  if (!options.source.empty()) s << "# written by mbdae from " << options.source << "\n";
+  s << "format: 1\n";
+  if (!model.name.empty()) s << "name: " << Quoted(model.name) << "\n";
+  if (model.gravity != Vec3::Zero()) s << "gravity: " << Vector(model.gravity) << "\n";
+
+  if (!model.parameters.empty()) {
+    s << "parameters:\n";
+    for (const Parameter& p : model.parameters) {
+      s << "  " << p.name << ": " << (p.expression.empty() ? Num(p.value) : Quoted(p.expression)) << "\n";
+    }
+  }
+
+  if (!model.splines.empty()) {
+    s << "splines:\n";
+    for (const SplineDef& d : model.splines) {
+      const bool expressions = !d.x_expressions.empty() && d.x_expressions.size() == d.spline.x().size() &&
+                               d.y_expressions.size() == d.spline.y().size();
+      s << "  " << d.name << ":\n    x: [";
+      for (size_t k = 0; k < d.spline.x().size(); ++k)
+        s << (k ? ", " : "") << (expressions ? Expr(d.x_expressions[k]) : Num(d.spline.x()[k]));
+      s << "]\n    y: [";
+      for (size_t k = 0; k < d.spline.y().size(); ++k)
+        s << (k ? ", " : "") << (expressions ? Expr(d.y_expressions[k]) : Num(d.spline.y()[k]));
+      s << "]\n    interpolation: " << InterpolationKey(d.spline.kind()) << "\n";
+    }
+  }
+
+  bool ground_markers = false;
+  for (size_t k = 1; k < model.markers.size(); ++k) ground_markers = ground_markers || model.markers[k].body < 0;
+  if (ground_markers) {
+    s << "ground:\n";
+    WriteMarkers(s, model, -1, "  ");
+  }
+
+  if (!model.bodies.empty()) {
+    s << "bodies:\n";
+    for (size_t b = 0; b < model.bodies.size(); ++b) {
+      const Body& body = model.bodies[b];
+      s << "  - name: " << body.name << "\n";
+      s << "    mass: " << Num(body.mass) << "\n";
+      const Mat3& I = body.inertia;
+      s << "    inertia: [" << Num(I(0, 0)) << ", " << Num(I(1, 1)) << ", " << Num(I(2, 2));
+      if (I(0, 1) != 0 || I(0, 2) != 0 || I(1, 2) != 0) {
+        s << ", " << Num(I(0, 1)) << ", " << Num(I(0, 2)) << ", " << Num(I(1, 2));
+      }
+      s << "]\n";
+      s << "    position: " << Vector(body.position) << "\n";
+      s << "    orientation: " << Orientation(body.orientation) << "\n";
+      if (body.velocity != Vec3::Zero()) s << "    velocity: " << Vector(body.velocity) << "\n";
+      if (body.angular_velocity != Vec3::Zero()) s << "    angular_velocity: " << Vector(body.angular_velocity) << "\n";
+      WriteMarkers(s, model, static_cast<int>(b), "    ");
+    }
+  }
+
+  if (!model.measures.empty()) {
+    s << "measures:\n";
+    for (const Measure& m : model.measures) {
+      const bool rotational = m.type == MeasureType::kRotational;
+      s << "  - name: " << m.name << "\n";
+      s << "    type: " << (rotational ? "rotational" : "translational") << "\n";
+      s << "    i: " << model.markers[m.i].name << "\n";
+      s << "    j: " << model.markers[m.j].name << "\n";
+      const char* axis = m.component == Component::kX   ? "x"
+                         : m.component == Component::kY ? "y"
+                         : m.component == Component::kZ ? "z"
+                                                        : "distance";
+      if (rotational) {
+        s << "    axis: " << axis << "\n";
+        s << "    quantity: "
+          << (m.quantity == Quantity::kPosition   ? "angle"
+              : m.quantity == Quantity::kVelocity ? "angular_velocity"
+                                                  : "angular_acceleration")
+          << "\n";
+      } else {
+        s << "    component: " << axis << "\n";
+        s << "    frame: " << (m.frame == MeasureFrame::kWorld ? "world" : "j") << "\n";
+        s << "    quantity: "
+          << (m.quantity == Quantity::kPosition   ? "position"
+              : m.quantity == Quantity::kVelocity ? "velocity"
+                                                  : "acceleration")
+          << "\n";
+      }
+      if (m.offset_initial) s << "    offset_initial: true\n";
+    }
+  }
+
+  if (!model.joints.empty()) {
+    s << "joints:\n";
+    for (const Joint& j : model.joints) {
+      s << "  - name: " << j.name << "\n";
+      s << "    type: " << JointTypeName(j.type) << "\n";
+      s << "    i: " << model.markers[j.i].name << "\n";
+      s << "    j: " << model.markers[j.j].name << "\n";
+      if (j.type == JointType::kGeneric) {
+        static const std::pair<unsigned, const char*> bits[] = {{kLockX, "x"},   {kLockY, "y"},   {kLockZ, "z"},
+                                                                {kLockRx, "rx"}, {kLockRy, "ry"}, {kLockRz, "rz"}};
+        s << "    lock: [";
+        bool first = true;
+        for (const auto& [bit, name] : bits) {
+          if (!(j.locks & bit)) continue;
+          s << (first ? "" : ", ") << name;
+          first = false;
+        }
+        s << "]\n";
+      }
+    }
+  }
+
+  if (!model.forces.empty()) {
+    s << "forces:\n";
+    for (const Force& f : model.forces) {
+      s << "  - name: " << f.name << "\n";
+      s << "    i: " << model.markers[f.i].name << "\n";
+      s << "    j: " << model.markers[f.j].name << "\n";
+      if (f.type == ForceType::kSpringDamper) {
+        s << "    type: spring_damper\n";
+        s << "    stiffness: " << Expr(f.stiffness) << "\n";
+        s << "    damping: " << Expr(f.damping) << "\n";
+        s << "    free_length: " << Expr(f.free_length) << "\n";
+        s << "    preload: " << Expr(f.preload) << "\n";
+      } else {
+        s << "    type: " << (f.type == ForceType::kTorque ? "torque" : "force") << "\n";
+        s << "    frame: " << (f.frame == ForceFrame::kWorld ? "world" : f.frame == ForceFrame::kI ? "i" : "j") << "\n";
+        s << "    value: [" << Expr(f.value[0]) << ", " << Expr(f.value[1]) << ", " << Expr(f.value[2]) << "]\n";
+      }
+    }
+  }
+
+  const SimulationSettings& sim = model.simulation;
+  s << "simulation:\n";
+  s << "  t_end: " << Num(sim.t_end) << "\n";
+  s << "  output_step: " << Num(sim.output_step) << "\n";
+  s << "  integrator: " << (sim.integrator == IntegratorKind::kHht ? "hht" : "ida") << "\n";
+  s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
+    << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
+    << ", modified: " << (sim.hht_modified ? "true" : "false") << "}\n";
+  s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol) << "}\n";
+  return s.str();
+}
+
+void WriteModelFile(const Model& model, const std::string& path, const ModelWriterOptions& options) {
+  const std::string text = WriteModelYaml(model, options);
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw std::runtime_error(path + ": cannot create the file");
+  out << text;
+  out.flush();
+  if (!out) throw std::runtime_error(path + ": cannot write the file");
+}
+
+}  // namespace mbdae::mbs

@@ -1,0 +1,37 @@
+# Runs `mbdae convert MODEL -o OUT.yaml` in WORKDIR and checks the exit code (EXPECT); on
+# success that OUT.yaml was written and is format 1, then that `mbdae CHECK_COMMAND` on it
+# (if given) exits 0; on failure that nothing was written and stderr says
+# "mbdae: error: " followed by MESSAGE.
+file(REMOVE_RECURSE ${WORKDIR})
+file(MAKE_DIRECTORY ${WORKDIR})
+set(out ${WORKDIR}/converted.yaml)
+execute_process(COMMAND ${MBDAE} convert ${MODEL} -o ${out} --quiet
+                RESULT_VARIABLE code OUTPUT_VARIABLE stdout ERROR_VARIABLE stderr)
+if(NOT code STREQUAL "${EXPECT}")
+  message(FATAL_ERROR "exit code ${code}, expected ${EXPECT}\nstdout: ${stdout}\nstderr: ${stderr}")
+endif()
+if(EXPECT STREQUAL "0")
+  if(NOT EXISTS ${out})
+    message(FATAL_ERROR "${out} was not written")
+  endif()
+  file(READ ${out} text)
+  string(FIND "${text}" "\nformat: 1\n" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "no 'format: 1' line in the converted file:\n${text}")
+  endif()
+  if(CHECK_COMMAND)
+    execute_process(COMMAND ${MBDAE} ${CHECK_COMMAND} ${out} RESULT_VARIABLE code2
+                    OUTPUT_VARIABLE stdout2 ERROR_VARIABLE stderr2)
+    if(NOT code2 STREQUAL "0")
+      message(FATAL_ERROR "mbdae ${CHECK_COMMAND} on the converted file: exit ${code2}\n${stdout2}${stderr2}")
+    endif()
+  endif()
+else()
+  if(EXISTS ${out})
+    message(FATAL_ERROR "${out} was written although the conversion failed")
+  endif()
+  string(FIND "${stderr}" "mbdae: error: ${MESSAGE}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "expected 'mbdae: error: ${MESSAGE}' on stderr, got: ${stderr}")
+  endif()
+endif()
