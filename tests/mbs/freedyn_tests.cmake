@@ -1,6 +1,6 @@
 # FreeDyn model files (mbs/freedyn.*) and the model writer (mbs/model_writer.*).
 add_executable(mbs_test_freedyn ${CMAKE_CURRENT_LIST_DIR}/test_freedyn.cc)
-target_link_libraries(mbs_test_freedyn PRIVATE mbdae_mbs GTest::gtest_main)
+target_link_libraries(mbs_test_freedyn PRIVATE mbdae_mbs mbdae_cli GTest::gtest_main)
 target_compile_definitions(mbs_test_freedyn PRIVATE MBDAE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 gtest_discover_tests(mbs_test_freedyn)
 
@@ -19,3 +19,9 @@ add_test(NAME freedyn.convert_unknown_block_exit_2
                  -DMODEL=${CMAKE_CURRENT_LIST_DIR}/models/freedyn/unknown_block.fds -DEXPECT=2
                  "-DMESSAGE=${CMAKE_CURRENT_LIST_DIR}/models/freedyn/unknown_block.fds:12:1: Force 'tyre': block type 'Force Tire' is not read"
                  -P ${CMAKE_CURRENT_LIST_DIR}/freedyn_convert.cmake)
+
+# Acceptance 2, .fds half: the .fds oscillator and its YAML twin give the same results.
+add_test(NAME freedyn.oscillator_fds_equals_yaml
+         COMMAND ${MBDAE_PYTHON} -m pytest -q -s -p no:cacheprovider ${CMAKE_CURRENT_LIST_DIR}/test_freedyn_simulate.py)
+set_tests_properties(freedyn.oscillator_fds_equals_yaml PROPERTIES
+  ENVIRONMENT "MBDAE_BIN=$<TARGET_FILE:mbdae>;MBDAE_SOURCE_DIR=${PROJECT_SOURCE_DIR}" TIMEOUT 300)

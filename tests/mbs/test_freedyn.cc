@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/cli.h"
 #include "mbs/freedyn.h"
 #include "mbs/kinematics.h"
 #include "mbs/loader.h"
@@ -622,6 +623,21 @@ TEST(ModelWriter, WriteFileFailsWithThePath) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("no_such_dir/x.yaml: cannot create the file"), std::string::npos);
   }
+}
+
+// ---- the program's command line --------------------------------------------------------------------
+
+TEST(FreeDynCommandLine, ConvertAndResultsPath) {
+  const app::CommandLine cl = app::ParseCommandLine({"convert", "m.fds", "-o", "m.yaml", "--set", "k=2"});
+  EXPECT_EQ(cl.command, app::Command::kConvert);
+  EXPECT_EQ(cl.model_path, "m.fds");
+  EXPECT_EQ(cl.output_path, "m.yaml");
+  EXPECT_EQ(cl.parameter_overrides.at("k"), 2);
+  EXPECT_EQ(app::ParseCommandLine({"convert", "m.fds"}).output_path, "");
+  EXPECT_THROW(app::ParseCommandLine({"convert", "m.fds", "--t-end", "1"}), app::UsageError);
+  EXPECT_THROW(app::ParseCommandLine({"check", "m.fds", "-o", "x"}), app::UsageError);
+  EXPECT_EQ(app::DefaultResultsPath("dir/model.fds"), "dir/model.h5");
+  EXPECT_EQ(app::DefaultResultsPath("MODEL.FDS"), "MODEL.h5");
 }
 
 }  // namespace
