@@ -20,8 +20,8 @@ add_test(NAME freedyn.convert_unknown_block_exit_2
                  "-DMESSAGE=${CMAKE_CURRENT_LIST_DIR}/models/freedyn/unknown_block.fds:12:1: Force 'tyre': block type 'Force Tire' is not read"
                  -P ${CMAKE_CURRENT_LIST_DIR}/freedyn_convert.cmake)
 
-# Acceptance 2, .fds half: the .fds oscillator and its YAML twin give the same results.
-add_test(NAME freedyn.oscillator_fds_equals_yaml
+# Acceptance 2, .fds half: .fds models (oscillator, pendulum) and their YAML twins give the same results.
+add_test(NAME freedyn.simulate_fds_equals_yaml
          COMMAND ${MBDAE_PYTHON} -m pytest -q -s -p no:cacheprovider ${CMAKE_CURRENT_LIST_DIR}/test_freedyn_simulate.py)
-set_tests_properties(freedyn.oscillator_fds_equals_yaml PROPERTIES
+set_tests_properties(freedyn.simulate_fds_equals_yaml PROPERTIES
   ENVIRONMENT "MBDAE_BIN=$<TARGET_FILE:mbdae>;MBDAE_SOURCE_DIR=${PROJECT_SOURCE_DIR}" TIMEOUT 300)

@@ -53,3 +53,25 @@ def test_fds_and_yaml_give_the_same_results(tmp_path):
     error = float(np.max(np.abs(x - exact))) / float(np.max(np.abs(exact)))
     print(f"oscillator.fds, IDA rtol 1e-11: max |x - exact| / max |exact| = {error:.3e}")
     assert error <= 1e-8
+
+
+def test_fds_pendulum_equals_the_yaml_pendulum(tmp_path):
+    """tests/mbs/models/freedyn/pendulum.fds is examples/pendulum.yaml written by hand as a
+    FreeDyn file (a generic constraint fixing x y z rx ry instead of the revolute joint):
+    `mbdae simulate` on both gives the same rows to 1e-12."""
+    fds = os.path.join(SOURCE, "tests", "mbs", "models", "freedyn", "pendulum.fds")
+    yaml = os.path.join(SOURCE, "examples", "pendulum.yaml")
+    args = ["--integrator", "ida", "--rtol", "1e-8", "--atol", "1e-10", "--quiet"]
+    for model, out in [(fds, "fds.h5"), (yaml, "yaml.h5")]:
+        r = run(["simulate", model, "-o", str(tmp_path / out)] + args, tmp_path)
+        assert r.returncode == 0, r.stdout + r.stderr
+    a, b = h5py.File(tmp_path / "fds.h5", "r"), h5py.File(tmp_path / "yaml.h5", "r")
+    assert a["time"].shape[0] == 2001
+    for name in ["time", "q", "v", "a", "lambda", "measures/x", "measures/y"]:
+        x, y = np.asarray(a[name]), np.asarray(b[name])
+        assert x.shape == y.shape, name
+        diff = float(np.max(np.abs(x - y)))
+        print(f"pendulum {name}: max |fds - yaml| = {diff:.1e}")
+        assert diff <= 1e-12 * max(1.0, float(np.max(np.abs(x)))), name
+    r = run(["check", fds], tmp_path)
+    assert r.returncode == 0 and "ok: 1 bodies, 1 degrees of freedom" in r.stdout, r.stdout + r.stderr
