@@ -7,8 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
+#include <new>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -18,6 +20,16 @@
 #include "mbs/measure_kinematics.h"
 #include "mbs/system.h"
 #include "tests/support/random_models.h"
+
+// Counts heap allocations, to check that evaluations do none.
+static long g_allocations = 0;
+void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace mbdae::mbs {
 namespace {
@@ -306,6 +318,27 @@ TEST_F(MeasureKinematicsTest, PositionMeasureStateIsTheGradient) {
   MeasureStateJacobian sj;
   EXPECT_THROW(EvaluateMeasureState(ResolveMeasure(model_, acc), qs_[0].data(), vs_[0].data(), &sj),
                std::invalid_argument);
+}
+
+TEST_F(MeasureKinematicsTest, EvaluationsDoNotAllocate) {
+  std::vector<MeasureDef> defs;
+  for (size_t k = 0; k < model_.measures.size(); ++k)
+    defs.push_back(ResolveMeasure(model_, static_cast<int>(k)));
+  MeasureJacobian j;
+  MeasureStateJacobian sj;
+  double sum = 0;
+  const long before = g_allocations;
+  for (const MeasureDef& d : defs) {
+    EvaluateMeasurePosition(d, qs_[0].data(), true, &j);
+    sum += j.value + j.hessian(3, 3);
+    if (d.quantity != Quantity::kAcceleration) {
+      EvaluateMeasureState(d, qs_[0].data(), vs_[0].data(), &sj);
+      sum += sj.dq[3];
+    }
+    sum += EvaluateMeasureValue(d, qs_[0].data(), vs_[0].data(), as_[0].data());
+  }
+  EXPECT_EQ(g_allocations - before, 0);
+  EXPECT_TRUE(std::isfinite(sum));
 }
 
 // The system's acceleration measure is d/dt of the velocity measure along
