@@ -19,6 +19,12 @@
 // union and each add gets its position in the value array. Later evaluations replay the
 // same adds in the same order (the sequence depends only on the model, never on values),
 // so nothing is searched or allocated while evaluating.
+//
+// Speed. Per call the rotation matrix of every body is computed once; each joint
+// equation c = U . W (two fields, see JointField) gets its gradient, H v and Hessian
+// blocks from closed forms of B(e, u) products, and a joint's weighted Hessians are
+// summed into one 14x14 block before they are written. Entries that are structurally
+// zero for an evaluation are declared in the pattern but never written.
 #include "mbs/system.h"
 
 #include <algorithm>
@@ -109,13 +115,6 @@ MBDAE_INLINE Mat4 HessDot(const Vec3& u, const Vec3& w) {
   return h;
 }
 
-// Hessian of w . (A(e) u) with respect to e (constant, symmetric).
-Mat4 HessianDot(const Vec3& u, const Vec3& w) {
-  Mat4 h;
-  for (int m = 0; m < 4; ++m) h.col(m) = BMatrix(Quat::Unit(m), u).transpose() * w;
-  return h;
-}
-
 // d(G(e)^T y)/de for fixed y: G^T y = (-e_v.y, e_v x y + e0 y).
 Mat4 GtJacobian(const Vec3& y) {
   Mat4 m;
@@ -189,14 +188,6 @@ struct Field {
       j.block<3, 4>(0, 7 * t.slot + 3) += t.sign * BMatrix(l.ed[t.slot], t.u);
     }
     return j;
-  }
-  // h += Hessian of (w . x) at fixed w
-  void AddHessianDot(const Vec3& w, Mat14& h) const {
-    for (int k = 0; k < n; ++k) {
-      const Term& t = this->t[k];
-      if (t.slot < 0) continue;
-      h.block<4, 4>(7 * t.slot + 3, 7 * t.slot + 3) += t.sign * HessianDot(t.u, w);
-    }
   }
   // First and second time derivatives.
   void Rates(const Local& l, Vec3* xd, Vec3* xdd) const {
@@ -431,19 +422,13 @@ struct MultibodySystem::Impl {
     }
   }
 
-  // c = u . w, its gradient and (if hess) Hessian in the local coordinates.
-  static void DotEquation(const Field& u, const Field& w, const Local& l, bool hess, double* c,
-                          Vec14* grad, Mat14* h) {
+  // c = u . w and its gradient in the local coordinates (for JointReaction).
+  static void DotEquation(const Field& u, const Field& w, const Local& l, double* c,
+                          Vec14* grad) {
     const Vec3 uv = u.Value(l), wv = w.Value(l);
     const Mat3x14 ju = u.Jacobian(l), jw = w.Jacobian(l);
     *c = uv.dot(wv);
     *grad = ju.transpose() * wv + jw.transpose() * uv;
-    if (hess) {
-      h->noalias() = ju.transpose() * jw;
-      *h += h->transpose().eval();
-      u.AddHessianDot(wv, *h);
-      w.AddHessianDot(uv, *h);
-    }
   }
 
   ForceValues ComputeForceValues(int k) const {
@@ -536,13 +521,6 @@ struct MultibodySystem::Impl {
         if (orow < 0 || !InPart(rows, r)) continue;
         s.Add(orow + r % 7, oc + c % 7, m(r, c));
       }
-    }
-  }
-  static void AddLocalRow(Sink& s, int row, const Local& l, const Vec14& g) {
-    for (int c = 0; c < 14; ++c) {
-      const int oc = l.offset[c / 7];
-      if (oc < 0) continue;
-      s.Add(row, oc + c % 7, g[c]);
     }
   }
 
@@ -1117,7 +1095,7 @@ void MultibodySystem::JointReaction(int joint, double /*t*/, const double* q,
     im.JointFactors(jt, lock, fu, fw);
     double c;
     Vec14 grad;
-    Impl::DotEquation(fu, fw, l, false, &c, &grad, nullptr);
+    Impl::DotEquation(fu, fw, l, &c, &grad);
     g -= lambda[row] * grad;
     ++row;
   }
