@@ -1,5 +1,7 @@
 #include "apps/cli.h"
 
+#include "mbs/model_writer.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -250,27 +252,7 @@ ModelInfo Describe(const mbs::Model& model, const driver::Assembly& assembly) {
   return info;
 }
 
-std::string JsonString(const std::string& s) {
-  std::string out = "\"";
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += static_cast<char>(c);
-        }
-    }
-  }
-  return out + "\"";
-}
+std::string JsonString(const std::string& s) { return mbs::DoubleQuoted(s); }
 
 namespace {
 std::string JsonList(const std::vector<std::string>& names) {

@@ -12,6 +12,28 @@
 
 namespace mbdae::mbs {
 
+std::string DoubleQuoted(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += static_cast<char>(c);
+        }
+    }
+  }
+  return out + "\"";
+}
+
 namespace {
 
 // Shortest of 15 or 17 significant digits that reads back exactly.
@@ -25,27 +47,8 @@ std::string Num(double x) {
   return "0";
 }
 
-// A YAML double-quoted scalar.
-std::string Quoted(const std::string& s) {
-  std::string out = "\"";
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\x%02x", c);
-          out += buf;
-        } else {
-          out += static_cast<char>(c);
-        }
-    }
-  }
-  return out + "\"";
-}
+// A YAML double-quoted scalar (JSON string syntax, which YAML reads alike).
+std::string Quoted(const std::string& s) { return DoubleQuoted(s); }
 
 std::string Vector(const Vec3& v) { return "[" + Num(v[0]) + ", " + Num(v[1]) + ", " + Num(v[2]) + "]"; }
 
@@ -96,6 +99,8 @@ const char* JointTypeName(JointType t) {
     case JointType::kCylindrical: return "cylindrical";
     case JointType::kUniversal: return "universal";
     case JointType::kPlanar: return "planar";
+    case JointType::kMotion: return "motion";
+    case JointType::kGear: return "gear";
     default: return "generic";
   }
 }
@@ -195,6 +200,17 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
     for (const Joint& j : model.joints) {
       s << "  - name: " << j.name << "\n";
       s << "    type: " << JointTypeName(j.type) << "\n";
+      if (j.type == JointType::kMotion) {
+        s << "    measure: " << model.measures[j.measures[0]].name << "\n";
+        s << "    value: " << Expr(j.value) << "\n";
+        continue;
+      }
+      if (j.type == JointType::kGear) {
+        s << "    measures: [" << model.measures[j.measures[0]].name << ", "
+          << model.measures[j.measures[1]].name << "]\n";
+        s << "    ratio: " << Num(j.ratio) << "\n";
+        continue;
+      }
       s << "    i: " << model.markers[j.i].name << "\n";
       s << "    j: " << model.markers[j.j].name << "\n";
       if (j.type == JointType::kGeneric) {

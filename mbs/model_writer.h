@@ -32,6 +32,10 @@ struct ModelWriterOptions {
 
 std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options = {});
 
+// `s` as a double-quoted string, escaped as JSON does; valid as a YAML double-quoted
+// scalar and as a JSON string alike.
+std::string DoubleQuoted(const std::string& s);
+
 // Writes WriteModelYaml(model) to `path`; throws std::runtime_error "PATH: what" when the
 // file cannot be written.
 void WriteModelFile(const Model& model, const std::string& path, const ModelWriterOptions& options = {});
