@@ -234,17 +234,6 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
   if (!options.IsValid(&error)) throw InputError("assembly options: " + error);
   if (model.bodies.empty())
     throw InputError(Prefix(model) + "the model has no bodies: there is nothing to simulate");
-  // Force values over time, measures or splines can be read (FreeDyn files) but the
-  // multibody system evaluates only constant and parameter values in this release.
-  for (const mbs::Force& f : model.forces) {
-    const mbs::Expression* values[] = {&f.stiffness, &f.damping, &f.free_length, &f.preload,
-                                       &f.value[0],  &f.value[1], &f.value[2]};
-    for (const mbs::Expression* e : values)
-      if (e->uses_time() || e->depends_on_state() || !e->splines_used().empty())
-        throw InputError(Prefix(model) + "force '" + f.name + "': the value '" + e->text() +
-                         "' depends on time, measures or splines, which the multibody system "
-                         "does not evaluate yet (constant and parameter values only)");
-  }
   Assembly r;
   r.system = std::make_unique<mbs::MultibodySystem>(model);
   mbs::MultibodySystem& sys = *r.system;

@@ -227,6 +227,76 @@ class Loader {
     }
   }
 
+  // A value evaluated during the run (force values): over the parameters, t, every
+  // measure (Model::measures index) and spline(NAME, x) (Model::splines index). A measure
+  // at acceleration level is rejected, naming the measure.
+  Expression ParseRunTime(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    if (!node.IsScalar()) {
+      Fail(node, element, "'" + key + "' must be a number or an expression, got " + Kind(node));
+    }
+    SymbolTable symbols;
+    symbols.parameters = symbols_.parameters;
+    for (const Measure& m : model_.measures) symbols.measures.push_back(m.name);
+    for (const SplineDef& sp : model_.splines) symbols.splines.push_back(sp.name);
+    symbols.allow_time = true;
+    const std::string& text = node.Scalar();
+    Expression e;
+    try {
+      e = Expression::Parse(text, symbols);
+    } catch (const ExpressionError& err) {
+      Fail(node, element, "'" + key + "': in expression '" + text + "': " + err.what());
+    }
+    for (int m : e.measures_used()) {
+      if (model_.measures[m].quantity == Quantity::kAcceleration) {
+        Fail(node, element, "'" + key + "': measure '" + model_.measures[m].name +
+                                "' is an acceleration; a force may use position and velocity measures only");
+      }
+    }
+    return e;
+  }
+
+  // A measure of a motion or gear joint, by name: position level (a rotational angle if
+  // `rotational`).
+  int PositionMeasure(const YAML::Node& node, const std::string& element, const std::string& key,
+                      bool rotational) const {
+    const std::string name = String(node, element, key);
+    const int m = model_.find_measure(name);
+    if (m < 0) {
+      std::vector<std::string> names;
+      for (const Measure& me : model_.measures) names.push_back(me.name);
+      Fail(node, element, "'" + key + "': unknown measure '" + name + "'" + Suggest(name, names));
+    }
+    const Measure& me = model_.measures[m];
+    if (rotational && me.type != MeasureType::kRotational) {
+      Fail(node, element, "'" + key + "': measure '" + name + "' is translational; a gear joins two rotational angle measures");
+    }
+    if (me.quantity != Quantity::kPosition) {
+      Fail(node, element, "'" + key + "': measure '" + name + "' is a " +
+                              (me.quantity == Quantity::kVelocity ? "velocity" : "acceleration") +
+                              "; a " + (rotational ? "gear" : "motion") + " constrains position-level measures only");
+    }
+    return m;
+  }
+
+  // The value of a motion joint: over t, the parameters and spline(NAME, t); measures
+  // are reserved (a motion prescribes a function of time).
+  Expression ParseMotionValue(const YAML::Node& node, const std::string& element, const std::string& key) const {
+    if (!node.IsScalar()) {
+      Fail(node, element, "'" + key + "' must be a number or an expression, got " + Kind(node));
+    }
+    SymbolTable symbols;
+    symbols.parameters = symbols_.parameters;
+    symbols.reserved = symbols_.reserved;
+    for (const SplineDef& sp : model_.splines) symbols.splines.push_back(sp.name);
+    symbols.allow_time = true;
+    const std::string& text = node.Scalar();
+    try {
+      return Expression::Parse(text, symbols);
+    } catch (const ExpressionError& err) {
+      Fail(node, element, "'" + key + "': in expression '" + text + "': " + err.what());
+    }
+  }
+
   double LoadTimeNumber(const YAML::Node& node, const std::string& element, const std::string& key) const {
     const Expression e = Parse(node, element, key);
     const double value = e.Evaluate(values_.data());
@@ -842,8 +912,32 @@ class Loader {
                                     {"universal", kUniversal}, {"planar", kPlanar}, {"generic", kGeneric},
                                     {"motion", kMotion}, {"gear", kGear}});
       if (type == kMotion || type == kGear) {
-        Fail(type_node, element, "joint type '" + type_node.Scalar() +
-                                     "' is not supported yet (motion and gear joints come with a later release)");
+        if (n["i"] || n["j"] || n["lock"]) {
+          const char* key = n["i"] ? "i" : n["j"] ? "j" : "lock";
+          Fail(KeyNode(n, key), element,
+               std::string("a ") + type_node.Scalar() + " joint acts on measures, it has no '" + key + "'");
+        }
+        if (type == kMotion) {
+          CheckKeys(n, element, {"name", "type", "measure", "value"});
+          joint.type = JointType::kMotion;
+          const YAML::Node mnode = Required(n, element, "measure");
+          joint.measures[0] = PositionMeasure(mnode, element, "measure", false);
+          joint.value = ParseMotionValue(Required(n, element, "value"), element, "value");
+        } else {
+          CheckKeys(n, element, {"name", "type", "measures", "ratio"});
+          joint.type = JointType::kGear;
+          const YAML::Node list = Required(n, element, "measures");
+          if (!list.IsSequence() || list.size() != 2) {
+            Fail(list, element, "'measures' must be a list of 2 rotational angle measures, got " +
+                                    (list.IsSequence() ? std::to_string(list.size()) + " entries" : Kind(list)));
+          }
+          joint.measures[0] = PositionMeasure(list[0], element, "measures", true);
+          joint.measures[1] = PositionMeasure(list[1], element, "measures", true);
+          if (joint.measures[0] == joint.measures[1]) Fail(list[1], element, "the two measures of a gear must differ");
+          joint.ratio = LoadTimeNumber(Required(n, element, "ratio"), element, "ratio");
+        }
+        model_.joints.push_back(joint);
+        continue;
       }
       // Locks per type, in marker j's axes (model format, "Joints").
       constexpr unsigned kAllT = kLockX | kLockY | kLockZ, kAllR = kLockRx | kLockRy | kLockRz;
@@ -915,10 +1009,10 @@ class Loader {
       if (type == kSpring) {
         force.type = ForceType::kSpringDamper;
         CheckKeys(n, element, {"name", "type", "i", "j", "stiffness", "damping", "free_length", "preload"});
-        force.stiffness = Parse(Required(n, element, "stiffness"), element, "stiffness");
-        force.free_length = Parse(Required(n, element, "free_length"), element, "free_length");
-        force.damping = n["damping"] ? Parse(n["damping"], element, "damping") : Expression::Constant(0);
-        force.preload = n["preload"] ? Parse(n["preload"], element, "preload") : Expression::Constant(0);
+        force.stiffness = ParseRunTime(Required(n, element, "stiffness"), element, "stiffness");
+        force.free_length = ParseRunTime(Required(n, element, "free_length"), element, "free_length");
+        force.damping = n["damping"] ? ParseRunTime(n["damping"], element, "damping") : Expression::Constant(0);
+        force.preload = n["preload"] ? ParseRunTime(n["preload"], element, "preload") : Expression::Constant(0);
       } else {
         force.type = type == kForce ? ForceType::kForce : ForceType::kTorque;
         CheckKeys(n, element, {"name", "type", "i", "j", "frame", "value"});
@@ -931,7 +1025,7 @@ class Loader {
           Fail(value, element, "'value' must be a list of 3 numbers or expressions, got " +
                                    (value.IsSequence() ? std::to_string(value.size()) + " entries" : Kind(value)));
         }
-        for (int c = 0; c < 3; ++c) force.value[c] = Parse(value[c], element, "value");
+        for (int c = 0; c < 3; ++c) force.value[c] = ParseRunTime(value[c], element, "value");
       }
       force.i = Marker(Required(n, element, "i"), element, "i");
       force.j = n["j"] ? Marker(n["j"], element, "j") : 0;

@@ -71,13 +71,24 @@ struct Measure {
 
 // Lock bits, in marker j's axes.
 enum Lock : unsigned { kLockX = 1, kLockY = 2, kLockZ = 4, kLockRx = 8, kLockRy = 16, kLockRz = 32 };
-enum class JointType { kFixed, kSpherical, kRevolute, kPrismatic, kCylindrical, kUniversal, kPlanar, kGeneric };
+enum class JointType {
+  kFixed, kSpherical, kRevolute, kPrismatic, kCylindrical, kUniversal, kPlanar, kGeneric,
+  kMotion,  // one equation m(q) - f(t) = 0 on a position-level measure, named NAME.motion
+  kGear     // one equation (m2 - m2_0) - ratio (m1 - m1_0) = 0 on two angles, NAME.gear
+};
 
 struct Joint {
   std::string name;
   JointType type = JointType::kGeneric;
-  int i = -1, j = -1;  // marker indices
+  int i = -1, j = -1;  // marker indices (-1 for motion and gear joints)
   unsigned locks = 0;  // Lock bits; equations are emitted in the order x y z rx ry rz
+  // Motion: measures[0] is the driven measure (position level) and `value` f(t), an
+  // expression over t, parameters and spline(NAME, t) (not measures).
+  // Gear: measures[0], measures[1] are two rotational angle measures and `ratio` r;
+  // m1_0, m2_0 are their values at the initial state of the model file (before assembly).
+  std::array<int, 2> measures = {-1, -1};  // Model::measures indices
+  Expression value;
+  double ratio = 1;
   SourceLocation where;
 };
 

@@ -36,6 +36,7 @@
 #include <stdexcept>
 
 #include "mbs/kinematics.h"
+#include "mbs/measure_kinematics.h"
 
 namespace mbdae::mbs {
 namespace {
@@ -45,6 +46,7 @@ using Vec14 = Eigen::Matrix<double, 14, 1>;
 using Mat3x14 = Eigen::Matrix<double, 3, 14>;
 using Mat14 = Eigen::Matrix<double, 14, 14>;
 using Mat43 = Eigen::Matrix<double, 4, 3>;
+using Mat37 = Eigen::Matrix<double, 3, 7>;
 
 // B(e, u) = d(A(e) u)/de = 2 [e0 u + e_v x u, (e_v.u) I + e_v u^T - u e_v^T - e0 skew(u)];
 // B(e, u) e = 2 A(e) u.
@@ -349,6 +351,38 @@ struct MultibodySystem::Impl {
     Vec3 value = Vec3::Zero();
   };
   std::vector<ForceValues> force_values;
+  // Force values over t, measures and splines. The seven expressions of an element are
+  // numbered 0 stiffness, 1 damping, 2 free_length, 3 preload, 4..6 value components.
+  // Per element: the measures its expressions use (union, model indices), resolved once,
+  // their state Jacobians of the current evaluation, and dE_e/dm_u (d_expr[u][e]).
+  struct ForceExpressions {
+    std::vector<int> measures;
+    std::vector<MeasureDef> defs;
+    std::vector<MeasureStateJacobian> jac;
+    std::vector<std::array<double, 7>> d_expr;
+    // For expression e: the union index of each entry of its measures_used().
+    std::array<std::vector<int>, 7> slot;
+  };
+  std::vector<ForceExpressions> force_expr;
+  // Motion and gear joints: one equation each, C = sum_u coef[u] m_u(q) + constant - f(t)
+  // (f only for a motion), over one or two position-level measures.
+  struct MeasureConstraint {
+    int joint = -1, row = -1, n = 0;
+    MeasureDef def[2];
+    double coef[2] = {0, 0};
+    double constant = 0;
+    bool motion = false, wrap = false;  // wrap: a motion on an angle, C in (-pi, pi]
+    // Gear angles are continued across the +-pi cut from the previous evaluation.
+    bool unwrap[2] = {false, false};
+    double last[2] = {0, 0};
+    MeasureJacobian jac[2];
+  };
+  std::vector<MeasureConstraint> measure_constraints;
+  std::vector<double> measure_values;          // by model measure index (used ones set)
+  // Subtracted from a measure with offset_initial in expressions: its value at the
+  // initial state of the model file (before assembly); 0 for the others.
+  std::vector<double> measure_offsets;
+  std::vector<const Spline*> spline_pointers;  // by model spline index
   Sink sink[dae::kNumMatrices];
   std::vector<double> zeros;  // nq + nc zeros for absent inputs
   std::string error;
@@ -431,36 +465,68 @@ struct MultibodySystem::Impl {
     *grad = ju.transpose() * wv + jw.transpose() * uv;
   }
 
-  ForceValues ComputeForceValues(int k) const {
-    const double* p = params.data();
-    const Force& f = model.forces[k];
-    ForceValues fv;
-    if (f.type == ForceType::kSpringDamper) {
-      fv.k = f.stiffness.Evaluate(p);
-      fv.c = f.damping.Evaluate(p);
-      fv.l0 = f.free_length.Evaluate(p);
-      fv.preload = f.preload.Evaluate(p);
-    } else {
-      for (int c = 0; c < 3; ++c) fv.value[c] = f.value[c].Evaluate(p);
+  static const Expression& ForceExpression(const Force& f, int e) {
+    switch (e) {
+      case 0: return f.stiffness;
+      case 1: return f.damping;
+      case 2: return f.free_length;
+      case 3: return f.preload;
+      default: return f.value[e - 4];
     }
-    return fv;
   }
-  void EvaluateForceValues() {
-    for (size_t k = 0; k < model.forces.size(); ++k)
-      force_values[k] = ComputeForceValues(static_cast<int>(k));
+  static int FirstExpression(const Force& f) { return f.type == ForceType::kSpringDamper ? 0 : 4; }
+  static int EndExpression(const Force& f) { return f.type == ForceType::kSpringDamper ? 4 : 7; }
+
+  // The values of element k at (t, q, v): the measures its expressions use are evaluated
+  // into fx->jac and *mvalues (by model measure index), then every expression with its
+  // gradient; fx->d_expr[u][e] = dE_e/dm_u. No allocation.
+  ForceValues ComputeForceValues(int k, double t, const double* q, const double* v,
+                                 ForceExpressions* fx, double* mvalues) const {
+    const Force& f = model.forces[k];
+    for (size_t u = 0; u < fx->measures.size(); ++u) {
+      EvaluateMeasureState(fx->defs[u], q, v, &fx->jac[u]);
+      mvalues[fx->measures[u]] = fx->jac[u].value - measure_offsets[fx->measures[u]];
+      fx->d_expr[u].fill(0.0);
+    }
+    ExpressionInputs in;
+    in.t = t;
+    in.parameters = params.data();
+    in.measures = mvalues;
+    in.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
+    double x[7] = {0, 0, 0, 0, 0, 0, 0};
+    ExpressionGradient g;
+    for (int e = FirstExpression(f); e < EndExpression(f); ++e) {
+      const Expression& ex = ForceExpression(f, e);
+      if (fx->slot[e].empty()) {
+        x[e] = ex.Evaluate(in);
+        continue;
+      }
+      x[e] = ex.EvaluateGradient(in, &g);
+      for (size_t m = 0; m < fx->slot[e].size(); ++m) fx->d_expr[fx->slot[e][m]][e] = g.d_measures[m];
+    }
+    ForceValues fv;
+    fv.k = x[0];
+    fv.c = x[1];
+    fv.l0 = x[2];
+    fv.preload = x[3];
+    fv.value = Vec3(x[4], x[5], x[6]);
+    return fv;
   }
 
   // The force (or torque) vector of element k on marker i, world axes, and its
   // derivatives with respect to the local coordinates and rates (skipped when dfdq is
   // null; then dfdv must be null too). Returns false if a
   // spring has zero length (the values are then finite but meaningless).
+  // dfde (if not null): df/dE_e for the seven expression values (columns as in
+  // ForceExpressions).
   bool ForceVector(int k, const ForceValues& fv, const Local& l, Vec3* f, Mat3x14* dfdq,
-                   Mat3x14* dfdv) const {
+                   Mat3x14* dfdv, Mat37* dfde = nullptr) const {
     const Force& fe = model.forces[k];
     if (dfdq) {
       dfdq->setZero();
       dfdv->setZero();
     }
+    if (dfde) dfde->setZero();
     if (fe.type == ForceType::kSpringDamper) {
       const Field d = Separation(fe.i, fe.j);
       const Vec3 dv = d.Value(l);
@@ -473,6 +539,12 @@ struct MultibodySystem::Impl {
       const double ld = n.dot(ddot);
       const double s = -fv.k * (len - fv.l0) - fv.c * ld + fv.preload;
       *f = s * n;
+      if (dfde) {
+        dfde->col(0) = -(len - fv.l0) * n;
+        dfde->col(1) = -ld * n;
+        dfde->col(2) = fv.k * n;
+        dfde->col(3) = n;
+      }
       if (!dfdq) return ok;
       const Mat3 dn = (Mat3::Identity() - n * n.transpose()) / len;  // dn/dd
       const Eigen::Matrix<double, 1, 14> dl = n.transpose() * jd;
@@ -486,6 +558,7 @@ struct MultibodySystem::Impl {
     // force / torque: constant components in the frame's axes
     if (fe.frame == ForceFrame::kWorld) {
       *f = fv.value;
+      if (dfde) dfde->rightCols<3>().setIdentity();
       return true;
     }
     const int marker = fe.frame == ForceFrame::kI ? fe.i : fe.j;
@@ -495,6 +568,11 @@ struct MultibodySystem::Impl {
     const Field u = One(t);
     *f = u.Value(l);
     if (dfdq) *dfdq = u.Jacobian(l);
+    if (dfde) {
+      const Marker& mk = model.markers[marker];
+      dfde->rightCols<3>() =
+          mk.body < 0 ? mk.orientation : Mat3(RotationMatrix(l.e[slot]) * mk.orientation);
+    }
     return true;
   }
 
@@ -520,6 +598,21 @@ struct MultibodySystem::Impl {
         const int orow = l.offset[r / 7];
         if (orow < 0 || !InPart(rows, r)) continue;
         s.Add(orow + r % 7, oc + c % 7, m(r, c));
+      }
+    }
+  }
+
+  // Adds the outer product col * row^T: rows in the local coordinates of roff (InPart
+  // rows), columns in those of coff.
+  static void AddCross(Sink& s, const int roff[2], const int coff[2], const Vec14& col,
+                       const Vec14& row, Part rows) {
+    for (int c = 0; c < 14; ++c) {
+      const int oc = coff[c / 7];
+      if (oc < 0) continue;
+      for (int r = 0; r < 14; ++r) {
+        const int orow = roff[r / 7];
+        if (orow < 0 || !InPart(rows, r)) continue;
+        s.Add(orow + r % 7, oc + c % 7, col[r] * row[c]);
       }
     }
   }
@@ -555,8 +648,48 @@ void MultibodySystem::Impl::Setup() {
     quaternion_offsets.push_back(7 * b + 3);
     for (int k = 0; k < 7; ++k) coordinate_names.push_back(model.bodies[b].name + "." + kCoord[k]);
   }
+  const int nmeasures = static_cast<int>(model.measures.size());
   for (size_t k = 0; k < model.joints.size(); ++k) {
     const Joint& jt = model.joints[k];
+    if (jt.type == JointType::kMotion || jt.type == JointType::kGear) {
+      const bool motion = jt.type == JointType::kMotion;
+      MeasureConstraint mc;
+      mc.joint = static_cast<int>(k);
+      mc.row = nc;
+      mc.motion = motion;
+      mc.n = motion ? 1 : 2;
+      for (int u = 0; u < mc.n; ++u) {
+        const int m = jt.measures[u];
+        if (m < 0 || m >= nmeasures)
+          throw std::invalid_argument("joint '" + jt.name + "': measure index " + std::to_string(m) +
+                                      " out of range (" + std::to_string(nmeasures) + " measures)");
+        if (model.measures[m].quantity != Quantity::kPosition ||
+            (!motion && model.measures[m].type != MeasureType::kRotational))
+          throw std::invalid_argument("joint '" + jt.name + "': measure '" + model.measures[m].name +
+                                      "' is not a position-level " + (motion ? "measure" : "angle"));
+        mc.def[u] = ResolveMeasure(model, m);
+      }
+      if (motion) {
+        if (jt.value.depends_on_state())
+          throw std::invalid_argument("joint '" + jt.name + "': the motion value depends on measures");
+        for (int sp : jt.value.splines_used())
+          if (sp < 0 || sp >= static_cast<int>(model.splines.size()))
+            throw std::invalid_argument("joint '" + jt.name + "': spline index out of range");
+        mc.coef[0] = 1;
+        mc.wrap = model.measures[jt.measures[0]].type == MeasureType::kRotational;
+      } else {
+        mc.coef[0] = -jt.ratio;
+        mc.coef[1] = 1;
+        mc.unwrap[0] = mc.unwrap[1] = true;
+      }
+      measure_constraints.push_back(mc);
+      joint_row.push_back(nc);
+      joint_locks.emplace_back();
+      constraint_names.push_back(jt.name + (motion ? ".motion" : ".gear"));
+      constraint_joint.push_back(static_cast<int>(k));
+      ++nc;
+      continue;
+    }
     check_marker(jt.i, "joint '" + jt.name + "'");
     check_marker(jt.j, "joint '" + jt.name + "'");
     if (BodyOf(jt.i) < 0 && BodyOf(jt.j) < 0)
@@ -586,6 +719,10 @@ void MultibodySystem::Impl::Setup() {
   }
   for (const Joint& jt : model.joints) {
     JointInfo ji;
+    if (jt.type == JointType::kMotion || jt.type == JointType::kGear) {
+      joint_info.push_back(ji);
+      continue;
+    }
     const int mk[2] = {jt.i, jt.j};
     for (int s = 0; s < 2; ++s) {
       const Marker& m = model.markers[mk[s]];
@@ -609,6 +746,68 @@ void MultibodySystem::Impl::Setup() {
   }
   state.resize(nb);
   force_values.resize(model.forces.size());
+  const int nmeas = static_cast<int>(model.measures.size());
+  const int nspl = static_cast<int>(model.splines.size());
+  measure_values.assign(nmeas, 0.0);
+  for (const SplineDef& sd : model.splines) spline_pointers.push_back(&sd.spline);
+  force_expr.resize(model.forces.size());
+  for (size_t k = 0; k < model.forces.size(); ++k) {
+    const Force& f = model.forces[k];
+    ForceExpressions& fx = force_expr[k];
+    for (int e = FirstExpression(f); e < EndExpression(f); ++e) {
+      const Expression& ex = ForceExpression(f, e);
+      for (int s : ex.splines_used())
+        if (s < 0 || s >= nspl)
+          throw std::invalid_argument("force '" + f.name + "': spline index " + std::to_string(s) +
+                                      " out of range (" + std::to_string(nspl) + " splines)");
+      for (int m : ex.measures_used()) {
+        if (m < 0 || m >= nmeas)
+          throw std::invalid_argument("force '" + f.name + "': measure index " + std::to_string(m) +
+                                      " out of range (" + std::to_string(nmeas) + " measures)");
+        if (model.measures[m].quantity == Quantity::kAcceleration)
+          throw std::invalid_argument("force '" + f.name + "': measure '" + model.measures[m].name +
+                                      "' is an acceleration; forces may use position and velocity "
+                                      "measures only");
+        auto it = std::find(fx.measures.begin(), fx.measures.end(), m);
+        if (it == fx.measures.end()) {
+          fx.measures.push_back(m);
+          fx.defs.push_back(ResolveMeasure(model, m));
+          it = fx.measures.end() - 1;
+        }
+        fx.slot[e].push_back(static_cast<int>(it - fx.measures.begin()));
+      }
+    }
+    fx.jac.resize(fx.measures.size());
+    fx.d_expr.resize(fx.measures.size());
+  }
+  measure_offsets.assign(nmeas, 0.0);
+  {
+    std::vector<double> q0(nq, 0.0), v0(nq, 0.0);
+    for (int b = 0; b < nb; ++b) {
+      const Body& body = model.bodies[b];
+      const int o = Model::coordinate_offset(b);
+      Eigen::Map<Vec3>(q0.data() + o) = body.position;
+      Eigen::Map<Quat>(q0.data() + o + 3) = body.orientation;
+      Eigen::Map<Vec3>(v0.data() + o) = body.velocity;
+      Eigen::Map<Quat>(v0.data() + o + 3) =
+          0.5 * EMatrix(body.orientation).transpose() * body.angular_velocity;
+    }
+    for (const ForceExpressions& fx : force_expr)
+      for (size_t u = 0; u < fx.measures.size(); ++u)
+        if (model.measures[fx.measures[u]].offset_initial)
+          measure_offsets[fx.measures[u]] = EvaluateMeasureValue(fx.defs[u], q0.data(), v0.data(), nullptr);
+    for (MeasureConstraint& mc : measure_constraints) {
+      if (mc.motion) continue;
+      // Gear: C = (m2 - m2_0) - r (m1 - m1_0), m_0 at the initial state of the file.
+      mc.constant = 0;
+      for (int u = 0; u < 2; ++u) {
+        MeasureJacobian mj;
+        EvaluateMeasurePosition(mc.def[u], q0.data(), false, &mj);
+        mc.last[u] = mj.value;
+        mc.constant -= mc.coef[u] * mj.value;
+      }
+    }
+  }
   zeros.assign(nq + nc + 1, 0.0);
 
   // Record the patterns with a generic state.
@@ -631,7 +830,14 @@ void MultibodySystem::Impl::Setup() {
   std::vector<double> f(nq), c(nc + 1), ct(nc + 1), g(nc + 1);
   eout.force = f.data(); eout.constraint = c.data(); eout.constraint_dt = ct.data();
   eout.acc_rhs = g.data();
+  std::vector<std::array<double, 2>> last(measure_constraints.size());
+  for (size_t k = 0; k < measure_constraints.size(); ++k)
+    last[k] = {measure_constraints[k].last[0], measure_constraints[k].last[1]};
   Run(ein, eout);
+  for (size_t k = 0; k < measure_constraints.size(); ++k) {
+    measure_constraints[k].last[0] = last[k][0];
+    measure_constraints[k].last[1] = last[k][1];
+  }
   for (int m = 0; m < dae::kNumMatrices; ++m) {
     const auto mm = static_cast<dae::Matrix>(m);
     const bool qrows = mm == dae::Matrix::kConstraintDq || mm == dae::Matrix::kConstraintVelDq;
@@ -659,7 +865,6 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   if (out.constraint) std::fill(out.constraint, out.constraint + nc, 0.0);
   if (out.constraint_dt) std::fill(out.constraint_dt, out.constraint_dt + nc, 0.0);
   if (out.acc_rhs) std::fill(out.acc_rhs, out.acc_rhs + nc, 0.0);
-  EvaluateForceValues();
   bool spring_ok = true;
   int bad_spring = -1;
 
@@ -724,6 +929,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   const bool need_rates = sCv.active() || out.acc_rhs;
   Mat14 H;
   for (size_t k = 0; k < model.joints.size(); ++k) {
+    if (joint_locks[k].empty()) continue;  // motion and gear joints: below
     const JointInfo& ji = joint_info[k];
     const BodyState* bs[2] = {ji.body[0] >= 0 ? &state[ji.body[0]] : nullptr,
                               ji.body[1] >= 0 ? &state[ji.body[1]] : nullptr};
@@ -865,6 +1071,60 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       }
     }
   }
+  // Motion and gear joints: C = sum_u c_u m_u(q) + constant - f(t), so
+  //   C_q = sum c_u g_u,  C_t = -f'(t),  gamma = -sum c_u v^T H_u v + f''(t),
+  //   d(C_q^T w)/dq = w sum c_u H_u,  d(C_q v + C_t)/dq = sum c_u (H_u v)^T.
+  {
+    const bool need_h = sCtw.active() || sCv.active() || out.acc_rhs;
+    ExpressionInputs ein;
+    ein.t = in.t;
+    ein.parameters = params.data();
+    ein.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
+    for (MeasureConstraint& mc : measure_constraints) {
+      const int row = mc.row;
+      double c = mc.constant, gamma = 0;
+      for (int u = 0; u < mc.n; ++u) {
+        MeasureJacobian& mj = mc.jac[u];
+        EvaluateMeasurePosition(mc.def[u], q, need_h, &mj);
+        double value = mj.value;
+        if (mc.unwrap[u]) {
+          value += 2 * M_PI * std::round((mc.last[u] - value) / (2 * M_PI));
+          mc.last[u] = value;
+        }
+        c += mc.coef[u] * value;
+        if (sCq.active())
+          for (int r = 0; r < 14; ++r)
+            if (mj.offset[r / 7] >= 0) sCq.Add(row, mj.offset[r / 7] + r % 7, mc.coef[u] * mj.gradient[r]);
+        if (!need_h) continue;
+        const Vec14 vl = GatherLocal(mj.offset, v);
+        const Vec14 hv = mj.hessian * vl;
+        gamma -= mc.coef[u] * vl.dot(hv);
+        if (sCv.active())
+          for (int r = 0; r < 14; ++r)
+            if (mj.offset[r / 7] >= 0) sCv.Add(row, mj.offset[r / 7] + r % 7, mc.coef[u] * hv[r]);
+        if (sCtw.active()) {
+          const double wc = w[row] * mc.coef[u];
+          for (int cc = 0; cc < 14; ++cc) {
+            if (mj.offset[cc / 7] < 0) continue;
+            for (int r = 0; r < 14; ++r)
+              if (mj.offset[r / 7] >= 0)
+                sCtw.Add(mj.offset[r / 7] + r % 7, mj.offset[cc / 7] + cc % 7, wc * mj.hessian(r, cc));
+          }
+        }
+      }
+      if (mc.motion) {
+        double f1 = 0, f2 = 0;
+        const double f = model.joints[mc.joint].value.EvaluateTimeDerivatives(ein, &f1, &f2);
+        c -= f;
+        if (mc.wrap) c = std::remainder(c, 2 * M_PI);
+        if (out.constraint_dt) out.constraint_dt[row] = -f1;
+        gamma += f2;
+      }
+      if (out.constraint) out.constraint[row] = c;
+      if (out.acc_rhs) out.acc_rhs[row] = gamma;
+    }
+  }
+
   // Normalisation of the Euler parameters: e^T e - 1 = 0.
   for (int b = 0; b < nb; ++b) {
     const int row = nc - nb + b;
@@ -885,11 +1145,17 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   for (size_t k = 0; k < model.forces.size(); ++k) {
     const Force& fe = model.forces[k];
     Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
+    ForceExpressions& fx = force_expr[k];
+    force_values[k] =
+        ComputeForceValues(static_cast<int>(k), in.t, q, v, &fx, measure_values.data());
+    const bool state_values = !fx.measures.empty();
     Vec3 f;
     Mat3x14 dfdq, dfdv;
+    Mat37 dfde;
+    Eigen::Matrix<double, 14, 3> Pfull;  // dQ_local/df
     const bool derivs = sKq.active() || sKv.active();
     if (!ForceVector(static_cast<int>(k), force_values[k], l, &f, derivs ? &dfdq : nullptr,
-                     derivs ? &dfdv : nullptr) &&
+                     derivs ? &dfdv : nullptr, derivs && state_values ? &dfde : nullptr) &&
         spring_ok) {
       spring_ok = false;
       bad_spring = static_cast<int>(k);
@@ -902,6 +1168,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     if (derivs) {
       kq.setZero();
       kv.setZero();
+      Pfull.setZero();
     }
     for (int s = 0; s < 2; ++s) {
       if (l.offset[s] < 0) continue;
@@ -927,6 +1194,8 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       }
       gq.segment<4>(7 * s + 3) += P * fs;
       if (!derivs) continue;
+      if (!torque) Pfull.block<3, 3>(7 * s, 0) = sign * Mat3::Identity();
+      Pfull.block<4, 3>(7 * s + 3, 0) = sign * P;
       kq.block<4, 4>(7 * s + 3, 7 * s + 3) += Kown;
       if (!torque) {
         kq.block<3, 14>(7 * s, 0) += sign * dfdq;
@@ -943,6 +1212,20 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       else AddLocal(sKq, l, kq, Part::kRotation, Part::kRotation);
     }
     if (sKv.active() && depv) AddLocal(sKv, l, kv, Part::kAll, Part::kAll);
+    // Values over measures: dQ/dq += P df/dE dE/dm dm/dq (and the same for v), in the
+    // columns of the measure's bodies (Sink keeps the union with the entries above).
+    if (derivs && state_values) {
+      const Part rows = torque ? Part::kRotation : Part::kAll;
+      for (size_t u = 0; u < fx.measures.size(); ++u) {
+        const Eigen::Matrix<double, 7, 1> de =
+            Eigen::Map<const Eigen::Matrix<double, 7, 1>>(fx.d_expr[u].data());
+        const Eigen::Matrix<double, 14, 1> col = Pfull * (dfde * de);
+        const MeasureStateJacobian& mj = fx.jac[u];
+        if (sKq.active()) AddCross(sKq, l.offset, mj.offset, col, mj.dq, rows);
+        if (sKv.active() && fx.defs[u].quantity == Quantity::kVelocity)
+          AddCross(sKv, l.offset, mj.offset, col, mj.dv, rows);
+      }
+    }
   }
 
   for (Sink& s : sink) s.End();
@@ -1085,6 +1368,12 @@ void MultibodySystem::JointReaction(int joint, double /*t*/, const double* q,
                                     const double* lambda, double* force, double* torque) const {
   const Impl& im = *impl_;
   const Joint& jt = im.model.joints.at(joint);
+  if (jt.type == JointType::kMotion || jt.type == JointType::kGear) {
+    // No markers: the multiplier of NAME.motion / NAME.gear is the driving effort.
+    Eigen::Map<Vec3>(force).setZero();
+    Eigen::Map<Vec3>(torque).setZero();
+    return;
+  }
   Local l;
   im.Gather(im.BodyOf(jt.i), im.BodyOf(jt.j), q, im.zeros.data(), im.zeros.data(), l);
   // Generalised reaction -C_q^T lambda on the local coordinates.
@@ -1136,7 +1425,7 @@ double MultibodySystem::KineticEnergy(const double* q, const double* v) const {
   return t;
 }
 
-double MultibodySystem::PotentialEnergy(double /*t*/, const double* q) const {
+double MultibodySystem::PotentialEnergy(double t, const double* q) const {
   const Impl& im = *impl_;
   const Model& m = im.model;
   double u = 0;
@@ -1144,28 +1433,37 @@ double MultibodySystem::PotentialEnergy(double /*t*/, const double* q) const {
     const int o = Model::coordinate_offset(static_cast<int>(b));
     u -= m.bodies[b].mass * m.gravity.dot(Eigen::Map<const Vec3>(q + o));
   }
-  const double* p = im.params.data();
   Local l;
-  for (const Force& f : m.forces) {
+  std::vector<double> mvalues(m.measures.size(), 0.0);
+  for (size_t k = 0; k < m.forces.size(); ++k) {
+    const Force& f = m.forces[k];
     if (f.type != ForceType::kSpringDamper) continue;
     im.Gather(im.BodyOf(f.i), im.BodyOf(f.j), q, im.zeros.data(), im.zeros.data(), l);
     const double len = im.Separation(f.i, f.j).Value(l).norm();
-    const double dl = len - f.free_length.Evaluate(p);
-    u += 0.5 * f.stiffness.Evaluate(p) * dl * dl - f.preload.Evaluate(p) * dl;
+    // Values over t and the state: taken at (t, q, v = 0), not a potential in general.
+    Impl::ForceExpressions fx = im.force_expr[k];
+    const Impl::ForceValues fv =
+        im.ComputeForceValues(static_cast<int>(k), t, q, im.zeros.data(), &fx, mvalues.data());
+    const double dl = len - fv.l0;
+    u += 0.5 * fv.k * dl * dl - fv.preload * dl;
   }
   return u;
 }
 
-void MultibodySystem::ForceAction(int element, double /*t*/, const double* q, const double* v,
+void MultibodySystem::ForceAction(int element, double t, const double* q, const double* v,
                                   double* f_out, double* t_out) const {
   const int force = element;
   const Impl& im = *impl_;
   const Force& fe = im.model.forces.at(force);
   Local l;
-  im.Gather(im.BodyOf(fe.i), im.BodyOf(fe.j), q, v ? v : im.zeros.data(), im.zeros.data(), l);
+  const double* vv = v ? v : im.zeros.data();
+  im.Gather(im.BodyOf(fe.i), im.BodyOf(fe.j), q, vv, im.zeros.data(), l);
   Vec3 f;
   Mat3x14 dq, dv;
-  im.ForceVector(force, im.ComputeForceValues(force), l, &f, &dq, &dv);
+  Impl::ForceExpressions fx = im.force_expr[force];
+  std::vector<double> mvalues(im.model.measures.size(), 0.0);
+  im.ForceVector(force, im.ComputeForceValues(force, t, q, vv, &fx, mvalues.data()), l, &f, &dq,
+                 &dv);
   Eigen::Map<Vec3> F(f_out), T(t_out);
   if (fe.type == ForceType::kTorque) {
     F.setZero();

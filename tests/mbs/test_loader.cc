@@ -289,13 +289,17 @@ TEST(Loader, MiscErrors) {
                        "m.yaml:4:21: force 'f': force type 'bushing' is not supported yet"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: user, i: b.cm}\n"),
                        "force type 'user' is not supported yet"));
-  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: j, type: gear, measures: [a, b]}\n"),
-                       "joint 'j': joint type 'gear' is not supported yet"));
-  // Time and measures in a force value: not supported yet, not "unknown".
-  const std::string t = LoadError(
-      "format: 1\nbodies: [{name: b}]\nmeasures: [{name: x1, type: translational, i: b.cm, component: x}]\n"
-      "forces: [{name: f, type: force, i: b.cm, value: [\"-3*x1\", 0, t]}]\n");
-  EXPECT_TRUE(Contains(t, "force 'f': 'value': in expression '-3*x1': measure 'x1' at column 4 cannot be used here")) << t;
+  EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: j, type: gear, measures: [a, b], ratio: 2}\n"),
+                       "m.yaml:4:38: joint 'j': 'measures': unknown measure 'a'"));
+  // Time, measures and splines in force values load; an acceleration measure does not.
+  const std::string ms =
+      "format: 1\nbodies: [{name: b}]\nsplines: {s: {x: [0, 1], y: [0, 2]}}\n"
+      "measures: [{name: x1, type: translational, i: b.cm, component: x},\n"
+      "           {name: a1, type: translational, i: b.cm, component: x, quantity: acceleration}]\n";
+  EXPECT_EQ(LoadError(ms + "forces: [{name: f, type: force, i: b.cm, value: [\"-3*x1\", \"spline(s, t)\", t]}]\n"), "");
+  EXPECT_EQ(LoadError(ms + "forces: [{name: f, type: spring_damper, i: b.cm, stiffness: \"1+x1^2\", damping: t, free_length: 1}]\n"), "");
+  const std::string acc = LoadError(ms + "forces: [{name: f, type: force, i: b.cm, value: [\"-3*a1\", 0, 0]}]\n");
+  EXPECT_TRUE(Contains(acc, "force 'f': 'value': measure 'a1' is an acceleration")) << acc;
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b, mass: 1, nmae: c}]\n"),
                        "m.yaml:2:29: body 'b': unknown key 'nmae'; did you mean 'name'?"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}, {name: c}]\njoints: [{name: j, type: revolute, i: b.cm, j: b.cm}]\n"),

@@ -45,7 +45,7 @@ struct Outputs {
 };
 
 Outputs EvaluateAll(MultibodySystem& sys, const double* q, const double* v, const double* a,
-                    const double* w) {
+                    const double* w, double t = 0) {
   const int nq = sys.num_coordinates(), nc = sys.num_constraints();
   Outputs o;
   o.force.setZero(nq);
@@ -54,6 +54,7 @@ Outputs EvaluateAll(MultibodySystem& sys, const double* q, const double* v, cons
   o.acc_rhs.setZero(nc);
   dae::EvalInput in;
   in.q = q; in.v = v; in.a = a; in.w = w;
+  in.t = t;
   dae::EvalOutput out;
   out.force = o.force.data();
   out.constraint = o.constraint.data();
@@ -163,15 +164,21 @@ TEST(MultibodySystem, DerivativesMatchFiniteDifferences) {
     std::mt19937 rng(seed);
     RandomModelOptions opt;
     opt.bodies = 2 + seed % 3;
+    opt.expression_forces = true;  // values over measures, t and splines
+    opt.motion_gear = seed % 2 == 0;  // rheonomic motion constraints and a gear
     const Model model = RandomModel(rng, opt);
     MultibodySystem sys(model);
     const int nq = sys.num_coordinates(), nc = sys.num_constraints();
     for (int trial = 0; trial < 2; ++trial) {
       const RandomState s = MakeRandomState(rng, model, nc);
-      const Outputs o = EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data());
+      const double t = 0.37 + 0.41 * trial;
+      const Outputs o = EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data(), t);
       ASSERT_EQ(o.code, 0) << sys.last_error();
       auto at_q = [&](const std::vector<double>& q) {
-        return EvaluateAll(sys, q.data(), s.v.data(), s.a.data(), s.w.data());
+        return EvaluateAll(sys, q.data(), s.v.data(), s.a.data(), s.w.data(), t);
+      };
+      auto at_t = [&](double tt) {
+        return EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data(), tt);
       };
       const Eigen::Map<const VectorXd> v(s.v.data(), nq), a(s.a.data(), nq), w(s.w.data(), nc);
 
@@ -204,7 +211,7 @@ TEST(MultibodySystem, DerivativesMatchFiniteDifferences) {
       EXPECT_LT(RelativeError(DenseOf(sys, o, Matrix::kForceDq), dQdq, "dQ/dq"), kTol);
       const MatrixXd dQdv = FiniteDifferences(
           [&](const std::vector<double>& vv) -> VectorXd {
-            return EvaluateAll(sys, s.q.data(), vv.data(), s.a.data(), s.w.data()).force;
+            return EvaluateAll(sys, s.q.data(), vv.data(), s.a.data(), s.w.data(), t).force;
           },
           s.v);
       EXPECT_LT(RelativeError(DenseOf(sys, o, Matrix::kForceDv), dQdv, "dQ/dv"), kTol);
@@ -232,14 +239,26 @@ TEST(MultibodySystem, DerivativesMatchFiniteDifferences) {
           s.q);
       EXPECT_LT(RelativeError(DenseOf(sys, o, Matrix::kConstraintVelDq), dCv, "d(C_q v)/dq"), kTol);
 
-      // gamma = -d/ds (C_q(q + s v) v) at s = 0; C_t = 0 (no rheonomic constraints)
+      // C_t = dC/dt; gamma = -d/ds (C_q(q + s v) v) at s = 0 - dC_t/dt (C_qt = 0: the
+      // motion values depend on t alone)
       const double h = 1e-6;
+      const VectorXd Ct_fd = (at_t(t + h).constraint - at_t(t - h).constraint) / (2 * h);
+      EXPECT_LT(RelativeError(o.constraint_dt, Ct_fd, "C_t"), kTol);
+      const VectorXd Ctt_fd = (at_t(t + h).constraint_dt - at_t(t - h).constraint_dt) / (2 * h);
       std::vector<double> qp = s.q, qm = s.q;
       for (int k = 0; k < nq; ++k) { qp[k] += h * v[k]; qm[k] -= h * v[k]; }
       const VectorXd gamma_fd = -(DenseOf(sys, at_q(qp), Matrix::kConstraintDq) * v -
-                                  DenseOf(sys, at_q(qm), Matrix::kConstraintDq) * v) / (2 * h);
+                                  DenseOf(sys, at_q(qm), Matrix::kConstraintDq) * v) / (2 * h) -
+                                Ctt_fd;
       EXPECT_LT(RelativeError(o.acc_rhs, gamma_fd, "gamma"), kTol);
-      EXPECT_EQ(o.constraint_dt.cwiseAbs().maxCoeff(), 0.0);
+      if (!opt.motion_gear) EXPECT_EQ(o.constraint_dt.cwiseAbs().maxCoeff(), 0.0);
+      else EXPECT_GT(o.constraint_dt.cwiseAbs().maxCoeff(), 0.0);
+      // dQ/dt (force values over t), against the time derivative of the force values
+      // seen through ForceAction: central differences agree with a tighter step.
+      const VectorXd Qt_fd = (at_t(t + h).force - at_t(t - h).force) / (2 * h);
+      const VectorXd Qt_fd2 = (at_t(t + h / 4).force - at_t(t - h / 4).force) / (h / 2);
+      EXPECT_LT(RelativeError(Qt_fd2, Qt_fd, "dQ/dt (FD at h and h/4)"), 1e-6);
+      EXPECT_GT(Qt_fd.cwiseAbs().maxCoeff(), 1e-3);  // the forces do depend on t
     }
   }
   for (const auto& [what, err] : WorstErrors())
@@ -275,7 +294,9 @@ TEST(MultibodySystem, EvaluateIsRepeatable) {
 
 TEST(MultibodySystem, EvaluateDoesNotAllocate) {
   std::mt19937 rng(12);
-  const Model model = RandomModel(rng);
+  RandomModelOptions opt;
+  opt.expression_forces = true;
+  const Model model = RandomModel(rng, opt);
   MultibodySystem sys(model);
   const RandomState s = MakeRandomState(rng, model, sys.num_constraints());
   Outputs o = EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data());

@@ -22,7 +22,106 @@ struct RandomModelOptions {
   bool forces = true;        // every force type in every frame
   bool measures = true;      // every measure kind
   bool gravity = true;
+  // With measures: a spline `s` and force elements (a spring_damper, forces and a torque
+  // in every frame) whose values are expressions over position and velocity measures,
+  // t and spline(s, x).
+  bool expression_forces = false;
+  // With measures: motion joints (a translational component, a distance, an angle;
+  // values over t and spline(s, t)) and a gear between two angles.
+  bool motion_gear = false;
 };
+
+// A smooth spline `s` for the expression elements (added once).
+inline void AddTestSpline(mbs::Model& m) {
+  using namespace mbs;
+  if (m.find_spline("s") >= 0) return;
+  SplineDef sd;
+  sd.name = "s";
+  sd.spline = Spline({-6, -2, -0.5, 0, 1, 2.5, 6}, {0.5, -1, 0.3, 1, 0.2, -0.7, 1.5},
+                     Interpolation::kCubic);
+  m.splines.push_back(sd);
+}
+
+// The motion and gear joints of RandomModelOptions::motion_gear over the measures of
+// RandomModel (m2: y component in j axes, m6: distance, m8..m10: angles).
+inline void AddMotionAndGear(mbs::Model& m) {
+  using namespace mbs;
+  AddTestSpline(m);
+  SymbolTable sym;
+  sym.splines = {"s"};
+  sym.allow_time = true;
+  auto motion = [&](const char* name, const char* measure, const char* text) {
+    Joint j;
+    j.name = name;
+    j.type = JointType::kMotion;
+    j.measures[0] = m.find_measure(measure);
+    j.value = Expression::Parse(text, sym);
+    m.joints.push_back(j);
+  };
+  motion("mo_y", "m2", "0.3*sin(2*t) + 0.1*spline(s, t)");
+  motion("mo_d", "m6", "0.5 + 0.1*cos(3*t)*t^2");
+  motion("mo_a", "m8", "t^2 - 0.3*t + spline(s, 2*t)");
+  Joint g;
+  g.name = "gear";
+  g.type = JointType::kGear;
+  g.measures = {m.find_measure("m9"), m.find_measure("m10")};
+  g.ratio = -2.5;
+  m.joints.push_back(g);
+}
+
+// The expression-valued force elements of RandomModelOptions::expression_forces, over
+// the measures m0.. of RandomModel (11 per quantity: m0..m10 position, m11..m21
+// velocity; m8..m10 and m19..m21 rotational).
+inline void AddExpressionForces(mbs::Model& m, std::mt19937& rng, int first_body_marker) {
+  using namespace mbs;
+  const int nm = static_cast<int>(m.markers.size());
+  auto pick = [&](int n) { return static_cast<int>(rng() % static_cast<unsigned>(n)); };
+  auto body_marker = [&]() { return first_body_marker + pick(nm - first_body_marker); };
+  AddTestSpline(m);
+  SymbolTable sym;
+  for (const Measure& me : m.measures) sym.measures.push_back(me.name);
+  sym.splines = {"s"};
+  sym.allow_time = true;
+  auto E = [&](const char* text) { return Expression::Parse(text, sym); };
+  int n = 0;
+  auto add = [&](Force f, bool ground) {
+    f.name = "fx" + std::to_string(n++);
+    f.i = body_marker();
+    if (ground) {
+      f.j = 0;
+    } else {
+      do f.j = body_marker(); while (m.markers[f.j].body == m.markers[f.i].body);
+    }
+    m.forces.push_back(f);
+  };
+  Force sp;
+  sp.type = ForceType::kSpringDamper;
+  sp.stiffness = E("50*(1 + 0.1*m1^2)");
+  sp.damping = E("2 + 0.5*sin(m12)");
+  sp.free_length = E("0.5 + 0.1*spline(s, t)");
+  sp.preload = E("m9 + t*m20");
+  add(sp, false);
+  Force fw;
+  fw.type = ForceType::kForce;
+  fw.frame = ForceFrame::kWorld;
+  fw.value = {E("-3*m1 - 0.5*m12"), E("spline(s, m9)"), E("sin(t)*m20")};
+  add(fw, true);
+  Force fi;
+  fi.type = ForceType::kForce;
+  fi.frame = ForceFrame::kI;
+  fi.value = {E("m0*m13"), E("cos(m9) + m3"), E("t")};
+  add(fi, false);
+  Force tj;
+  tj.type = ForceType::kTorque;
+  tj.frame = ForceFrame::kJ;
+  tj.value = {E("-2*m9 - 0.3*m20"), E("spline(s, m14)"), E("m2*m11")};
+  add(tj, false);
+  Force tw;
+  tw.type = ForceType::kTorque;
+  tw.frame = ForceFrame::kWorld;
+  tw.value = {E("m10"), E("m21*t"), E("m5")};
+  add(tw, true);
+}
 
 inline mbs::Quat RandomUnitQuaternion(std::mt19937& rng) {
   std::normal_distribution<double> n(0.0, 1.0);
@@ -178,6 +277,8 @@ inline mbs::Model RandomModel(std::mt19937& rng, const RandomModelOptions& opt =
         m.measures.push_back(me);
       }
     }
+    if (opt.expression_forces) AddExpressionForces(m, rng, first_body_marker);
+    if (opt.motion_gear) AddMotionAndGear(m);
   }
   return m;
 }
