@@ -29,7 +29,14 @@ class MultibodySystem final : public dae::MechanicalSystem {
 
   const Model& model() const;
   // Names: coordinates "body.x" .. "body.e3"; constraints "joint.x" .. "joint.rz",
-  // "body.euler_norm". Joint equations in the joints' order, then the normalisations.
+  // "joint.motion" / "joint.gear" (one equation each), "body.euler_norm". Joint equations
+  // in the joints' order, then the normalisations.
+  // Force values over t, measures and splines are evaluated at every Evaluate (measures
+  // with offset_initial minus their value at the file's initial state); motion joints
+  // give C = m(q) - f(t) (angles modulo 2 pi) with C_t = -f'(t), gamma = -v^T H v + f''(t);
+  // gear joints (m2 - m2_0) - r (m1 - m1_0), angles continued across +-pi from the
+  // previous evaluation (so Evaluate keeps that much state). JointReaction gives zeros for
+  // motion and gear joints (their multiplier is the driving effort).
   const std::vector<std::string>& coordinate_names() const;
   const std::vector<std::string>& constraint_names() const;
   // For each constraint equation: the joint index, or -1 for a normalisation.

@@ -72,8 +72,8 @@ def main():
         lam = lambda_of(r, "drive.motion")
         torque_err = float(np.max(np.abs(lam + tau))) / float(np.max(np.abs(tau)))
         rows.append("| %s | %d | %.3e | %.3e |" % (model, len(t), angle_err, torque_err))
-        checks.append(("%s: max |phi - f| = %.3e <= 1e-10" % (model, angle_err), angle_err <= 1e-10))
-        checks.append(("%s: max |lambda + tau| / max |tau| = %.3e <= 1e-6" % (model, torque_err),
+        checks.append(("%s: max abs(phi - f) = %.3e <= 1e-10" % (model, angle_err), angle_err <= 1e-10))
+        checks.append(("%s: max abs(lambda + tau) / max abs(tau) = %.3e <= 1e-6" % (model, torque_err),
                        torque_err <= 1e-6))
     ok = all(c for _, c in checks)
     md = ["# Crank driven by a motion constraint: results\n",

@@ -39,7 +39,7 @@ def main():
         err = float(np.max(np.abs((p2 - 0.4) - RATIO * (p1 - 0.0))))
         turns1, turns2 = (p1[-1] - p1[0]) / (2 * np.pi), (p2[-1] - p2[0]) / (2 * np.pi)
         rows.append("| %s | %.2f | %.2f | %.3e |" % (name, turns1, turns2, err))
-        checks.append(("%s: max |(phi2 - phi2_0) - r (phi1 - phi1_0)| = %.3e <= 1e-10" % (name, err),
+        checks.append(("%s: max abs((phi2 - phi2_0) - r (phi1 - phi1_0)) = %.3e <= 1e-10" % (name, err),
                        err <= 1e-10))
         if t[-1] < 10 - 1e-9 or abs(turns1) < 2:
             checks.append(("%s: the run reaches 10 s and wheel 1 turns at least twice" % name, False))
