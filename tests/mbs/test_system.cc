@@ -296,6 +296,7 @@ TEST(MultibodySystem, EvaluateDoesNotAllocate) {
   std::mt19937 rng(12);
   RandomModelOptions opt;
   opt.expression_forces = true;
+  opt.motion_gear = true;
   const Model model = RandomModel(rng, opt);
   MultibodySystem sys(model);
   const RandomState s = MakeRandomState(rng, model, sys.num_constraints());
