@@ -18,6 +18,9 @@ run verification/pendulum/run.py
 run verification/free_body/run.py
 run verification/bricard/run.py
 run verification/andrews/run.py
+run verification/oscillator/run.py
+run verification/crank_motion/run.py
+run verification/gear/run.py
 if [ -x verification/malformed/run.sh ]; then
   echo "=== verification/malformed/run.sh"
   if verification/malformed/run.sh; then echo "--- ok"; else echo "--- FAILED: malformed"; failed=$((failed + 1)); fi
