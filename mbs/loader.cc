@@ -15,6 +15,8 @@
 #include <functional>
 #include <iomanip>
 #include <initializer_list>
+#include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -22,6 +24,7 @@
 #include "mbs/geometry.h"
 #include "mbs/mesh.h"
 #include "mbs/kinematics.h"
+#include "mbs/user_force.h"
 
 namespace mbdae::mbs {
 
@@ -1002,10 +1005,6 @@ class Loader {
       const ForceKind type = Enum<ForceKind>(type_node, element, "force type",
                                    {{"spring_damper", kSpring}, {"force", kForce}, {"torque", kTorque},
                                     {"bushing", kBushing}, {"user", kUser}});
-      if (type == kBushing || type == kUser) {
-        Fail(type_node, element, "force type '" + type_node.Scalar() +
-                                     "' is not supported yet (bushing and user forces come with a later release)");
-      }
       if (type == kSpring) {
         force.type = ForceType::kSpringDamper;
         CheckKeys(n, element, {"name", "type", "i", "j", "stiffness", "damping", "free_length", "preload"});
@@ -1013,6 +1012,57 @@ class Loader {
         force.free_length = ParseRunTime(Required(n, element, "free_length"), element, "free_length");
         force.damping = n["damping"] ? ParseRunTime(n["damping"], element, "damping") : Expression::Constant(0);
         force.preload = n["preload"] ? ParseRunTime(n["preload"], element, "preload") : Expression::Constant(0);
+      } else if (type == kBushing) {
+        force.type = ForceType::kBushing;
+        CheckKeys(n, element, {"name", "type", "i", "j", "stiffness", "damping"});
+        for (int which = 0; which < 2; ++which) {
+          const char* key = which == 0 ? "stiffness" : "damping";
+          const YAML::Node list = which == 0 ? Required(n, element, key) : n[key];
+          auto& out = which == 0 ? force.bushing_stiffness : force.bushing_damping;
+          if (!list) {
+            out.fill(Expression::Constant(0));
+            continue;
+          }
+          if (!list.IsSequence() || list.size() != 6) {
+            Fail(list, element, std::string("'") + key + "' must be a list of 6 numbers or expressions of the parameters, got " +
+                                    (list.IsSequence() ? std::to_string(list.size()) + " entries" : Kind(list)));
+          }
+          for (int c = 0; c < 6; ++c) {
+            out[c] = Parse(list[c], element, key);
+            const double x = out[c].Evaluate(model_.parameter_values().data());
+            if (!(x >= 0) || !std::isfinite(x)) {
+              Fail(list[c], element, std::string("'") + key + "' entry " + std::to_string(c + 1) + " is " +
+                                         Num(x) + "; it must be finite and >= 0");
+            }
+          }
+        }
+      } else if (type == kUser) {
+        force.type = ForceType::kUser;
+        CheckKeys(n, element, {"name", "type", "i", "j", "library", "function", "parameters"});
+        const YAML::Node lib = Required(n, element, "library");
+        force.library_path = String(lib, element, "library");
+        force.function = String(Required(n, element, "function"), element, "function");
+        if (const YAML::Node ps = n["parameters"]) {
+          if (!ps.IsSequence()) Fail(ps, element, "'parameters' must be a list of numbers or expressions, got " + Kind(ps));
+          for (size_t c = 0; c < ps.size(); ++c) force.user_parameters.push_back(Parse(ps[c], element, "parameters"));
+        }
+        std::filesystem::path path(force.library_path);
+        if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
+        const std::string key = path.lexically_normal().string();
+        auto it = libraries_.find(key);
+        if (it == libraries_.end()) {
+          try {
+            it = libraries_.emplace(key, std::make_shared<const UserForceLibrary>(key)).first;
+          } catch (const std::exception& e) {
+            Fail(lib, element, std::string("cannot use the library (relative paths are relative to the model file): ") + e.what());
+          }
+        }
+        force.library = it->second;
+        try {
+          force.library->Symbol(force.function, true);
+        } catch (const std::exception& e) {
+          Fail(n["function"], element, e.what());
+        }
       } else {
         force.type = type == kForce ? ForceType::kForce : ForceType::kTorque;
         CheckKeys(n, element, {"name", "type", "i", "j", "frame", "value"});
@@ -1071,6 +1121,8 @@ class Loader {
   }
 
   std::string file_;
+  // User-force libraries by normalised path: each loaded once and shared.
+  std::map<std::string, std::shared_ptr<const UserForceLibrary>> libraries_;
   const LoadOptions& options_;
   Model model_;
   SymbolTable symbols_;

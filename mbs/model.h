@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <array>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,6 +14,8 @@
 #include "mbs/spline.h"
 
 namespace mbdae::mbs {
+
+class UserForceLibrary;  // mbs/user_force.h
 
 using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
@@ -92,7 +95,11 @@ struct Joint {
   SourceLocation where;
 };
 
-enum class ForceType { kSpringDamper, kForce, kTorque };
+enum class ForceType {
+  kSpringDamper, kForce, kTorque,
+  kBushing,  // mbs/bushing.h: 6-axis linear spring-damper in marker j's axes
+  kUser      // api/mbdae_user_force.h: a function of a shared library
+};
 enum class ForceFrame { kWorld, kI, kJ };
 
 struct Force {
@@ -104,6 +111,16 @@ struct Force {
   Expression stiffness, damping, free_length, preload;
   // force / torque: components in `frame` axes
   std::array<Expression, 3> value;
+  // bushing: kx ky kz krx kry krz and cx .. crz, expressions of the parameters only
+  // (evaluated at every Evaluate with the system's parameter values; >= 0).
+  std::array<Expression, 6> bushing_stiffness, bushing_damping;
+  // user: the library (loaded once per path and shared by the elements naming it), the
+  // path as written in the file (for the writer), the function and its parameters
+  // (expressions of the parameters, evaluated when the system is constructed).
+  std::shared_ptr<const UserForceLibrary> library;
+  std::string library_path;
+  std::string function;
+  std::vector<Expression> user_parameters;
   SourceLocation where;
 };
 

@@ -1,6 +1,8 @@
 // mbs::Model -> model file text (YAML, format 1). See model_writer.h.
 #include "mbs/model_writer.h"
 
+#include "mbs/user_force.h"
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -240,6 +242,23 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
         s << "    damping: " << Expr(f.damping) << "\n";
         s << "    free_length: " << Expr(f.free_length) << "\n";
         s << "    preload: " << Expr(f.preload) << "\n";
+      } else if (f.type == ForceType::kBushing) {
+        s << "    type: bushing\n";
+        for (int which = 0; which < 2; ++which) {
+          const auto& v = which == 0 ? f.bushing_stiffness : f.bushing_damping;
+          s << (which == 0 ? "    stiffness: [" : "    damping: [");
+          for (int c = 0; c < 6; ++c) s << (c ? ", " : "") << Expr(v[c]);
+          s << "]\n";
+        }
+      } else if (f.type == ForceType::kUser) {
+        s << "    type: user\n";
+        // The resolved path (absolute when the model file's was), so the written file
+        // finds the library wherever it is written.
+        s << "    library: " << Quoted(f.library ? f.library->path() : f.library_path) << "\n";
+        s << "    function: " << f.function << "\n";
+        s << "    parameters: [";
+        for (size_t c = 0; c < f.user_parameters.size(); ++c) s << (c ? ", " : "") << Expr(f.user_parameters[c]);
+        s << "]\n";
       } else {
         s << "    type: " << (f.type == ForceType::kTorque ? "torque" : "force") << "\n";
         s << "    frame: " << (f.frame == ForceFrame::kWorld ? "world" : f.frame == ForceFrame::kI ? "i" : "j") << "\n";

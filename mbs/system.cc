@@ -35,8 +35,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "mbs/bushing.h"
 #include "mbs/kinematics.h"
 #include "mbs/measure_kinematics.h"
+#include "mbs/user_force.h"
 
 namespace mbdae::mbs {
 namespace {
@@ -364,6 +366,8 @@ struct MultibodySystem::Impl {
     std::array<std::vector<int>, 7> slot;
   };
   std::vector<ForceExpressions> force_expr;
+  // User force elements (by force index; null for the other types), bound at Setup.
+  std::vector<std::unique_ptr<UserForce>> user_forces;
   // Motion and gear joints: one equation each, C = sum_u coef[u] m_u(q) + constant - f(t)
   // (f only for a motion), over one or two position-level measures.
   struct MeasureConstraint {
@@ -474,8 +478,92 @@ struct MultibodySystem::Impl {
       default: return f.value[e - 4];
     }
   }
-  static int FirstExpression(const Force& f) { return f.type == ForceType::kSpringDamper ? 0 : 4; }
-  static int EndExpression(const Force& f) { return f.type == ForceType::kSpringDamper ? 4 : 7; }
+  static bool TwoMarkerLaw(const Force& f) {
+    return f.type == ForceType::kBushing || f.type == ForceType::kUser;
+  }
+  static int FirstExpression(const Force& f) {
+    return TwoMarkerLaw(f) ? 0 : f.type == ForceType::kSpringDamper ? 0 : 4;
+  }
+  static int EndExpression(const Force& f) {
+    return TwoMarkerLaw(f) ? 0 : f.type == ForceType::kSpringDamper ? 4 : 7;
+  }
+
+  // Two-marker force laws (bushing, user; mbs/force_law.h). The inputs x (24) of the
+  // law as functions of the local coordinates and rates of the element's bodies:
+  //   p = r + A(e) s,                  dp/dr = I, dp/de = B(e, s);
+  //   R = A(e/|e|) O,                  dphi = 2 E(e) de / |e|^2 (E(e) e = 0; = 2 E de
+  //                                    for unit e, Nikravesh eq. 6.90);
+  //   v = r' + B(e, s) e',             dv/de = B(e', s), dv/dr' = I, dv/de' = B(e, s);
+  //   w = 2 E(e) e' = -2 E(e') e,      dw/de = -2 E(e'), dw/de' = 2 E(e).
+  // Ground markers: p = s, R = O, v = w = 0.
+  using Mat24x14 = Eigen::Matrix<double, 24, 14>;
+  void TwoMarkerInputs(const Force& fe, const Local& l, MarkerPairKinematics* k, Mat24x14* xq,
+                       Mat24x14* xv) const {
+    if (xq) {
+      xq->setZero();
+      xv->setZero();
+    }
+    const int markers[2] = {fe.i, fe.j};
+    for (int s = 0; s < 2; ++s) {
+      const Marker& mk = model.markers[markers[s]];
+      Vec3& p = s == 0 ? k->p_i : k->p_j;
+      Mat3& R = s == 0 ? k->R_i : k->R_j;
+      Vec3& vel = s == 0 ? k->v_i : k->v_j;
+      Vec3& w = s == 0 ? k->w_i : k->w_j;
+      if (mk.body < 0 || l.offset[s] < 0) {
+        p = mk.position;
+        R = mk.orientation;
+        vel.setZero();
+        w.setZero();
+        continue;
+      }
+      const Quat& e = l.e[s];
+      const Quat& ed = l.ed[s];
+      const double n2 = e.squaredNorm();
+      const Mat34 Be = BMatrix(e, mk.position);
+      p = l.r[s] + RotationMatrix(e) * mk.position;
+      R = RotationMatrix(Quat(e / std::sqrt(n2))) * mk.orientation;
+      vel = l.rd[s] + Be * ed;
+      const Mat34 E = EMatrix(e), Ed = EMatrix(ed);
+      w = 2 * E * ed;
+      if (!xq) continue;
+      const int cp = s == 0 ? kPi : kPj, cphi = s == 0 ? kPhiI : kPhiJ;
+      const int cv = s == 0 ? kVi : kVj, cw = s == 0 ? kWi : kWj;
+      const int o = 7 * s;
+      xq->block<3, 3>(cp, o).setIdentity();
+      xq->block<3, 4>(cp, o + 3) = Be;
+      xq->block<3, 4>(cphi, o + 3) = (2 / n2) * E;
+      xq->block<3, 4>(cv, o + 3) = BMatrix(ed, mk.position);
+      xv->block<3, 3>(cv, o).setIdentity();
+      xv->block<3, 4>(cv, o + 3) = Be;
+      xq->block<3, 4>(cw, o + 3) = -2 * Ed;
+      xv->block<3, 4>(cw, o + 3) = 2 * E;
+    }
+  }
+
+  // Force and torque on marker i of a bushing or user element at (t, l); J (if not
+  // null) their Jacobian. A user function's error is caught here: *error gets the
+  // message and the values are zero.
+  ForceTorque TwoMarkerLawValue(int k, double t, const MarkerPairKinematics& km,
+                                ForceJacobian* J, std::string* error) const {
+    const Force& fe = model.forces[k];
+    if (fe.type == ForceType::kBushing) {
+      BushingParameters bp;
+      for (int c = 0; c < 6; ++c) {
+        bp.stiffness[c] = fe.bushing_stiffness[c].Evaluate(params.data());
+        bp.damping[c] = fe.bushing_damping[c].Evaluate(params.data());
+      }
+      return EvaluateBushing(bp, km, J);
+    }
+    try {
+      return user_forces[k]->Evaluate(t, km, J);
+    } catch (const std::exception& ex) {
+      if (error) *error = "user force '" + fe.name + "': " + ex.what();
+      if (J) J->setZero();
+      return ForceTorque();
+    }
+  }
+
 
   // The values of element k at (t, q, v): the measures its expressions use are evaluated
   // into fx->jac and *mvalues (by model measure index), then every expression with its
@@ -780,6 +868,31 @@ void MultibodySystem::Impl::Setup() {
     fx.jac.resize(fx.measures.size());
     fx.d_expr.resize(fx.measures.size());
   }
+  user_forces.resize(model.forces.size());
+  for (size_t k = 0; k < model.forces.size(); ++k) {
+    const Force& f = model.forces[k];
+    if (f.type == ForceType::kBushing) {
+      for (int c = 0; c < 12; ++c) {
+        const Expression& ex = c < 6 ? f.bushing_stiffness[c] : f.bushing_damping[c - 6];
+        if (ex.depends_on_state() || ex.uses_time() || !ex.splines_used().empty())
+          throw std::invalid_argument("bushing '" + f.name +
+                                      "': stiffness and damping may depend on the parameters only");
+      }
+    } else if (f.type == ForceType::kUser) {
+      if (!f.library) throw std::invalid_argument("user force '" + f.name + "': no library");
+      std::vector<double> values;
+      for (const Expression& ex : f.user_parameters) {
+        if (ex.depends_on_state() || ex.uses_time() || !ex.splines_used().empty())
+          throw std::invalid_argument("user force '" + f.name + "': parameters may depend on the model's parameters only");
+        values.push_back(ex.Evaluate(params.data()));
+      }
+      try {
+        user_forces[k] = std::make_unique<UserForce>(f.library, f.function, std::move(values));
+      } catch (const std::exception& e) {
+        throw std::runtime_error("user force '" + f.name + "': " + e.what());
+      }
+    }
+  }
   measure_offsets.assign(nmeas, 0.0);
   {
     std::vector<double> q0(nq, 0.0), v0(nq, 0.0);
@@ -867,6 +980,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   if (out.acc_rhs) std::fill(out.acc_rhs, out.acc_rhs + nc, 0.0);
   bool spring_ok = true;
   int bad_spring = -1;
+  std::string law_error;  // first error of a user force function (no allocation if none)
 
   for (int b = 0; b < nb; ++b) {
     const int o = Model::coordinate_offset(b);
@@ -1145,6 +1259,65 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   for (size_t k = 0; k < model.forces.size(); ++k) {
     const Force& fe = model.forces[k];
     Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
+    if (TwoMarkerLaw(fe)) {
+      // Bushing / user force: y = (F, T) on marker i from the law, chained through the
+      // marker kinematics (TwoMarkerInputs). Wrenches at the markers: (F, T) on i and
+      // (-F, -T - (p_i - p_j) x F) on j; each gives Q_r = F_s,
+      // Q_e = 2 G^T skew(s) A^T F_s + 2 G^T A^T T_s (as the force and torque elements).
+      const bool derivs = sKq.active() || sKv.active();
+      MarkerPairKinematics km;
+      Mat24x14 xq, xv;
+      TwoMarkerInputs(fe, l, &km, derivs ? &xq : nullptr, derivs ? &xv : nullptr);
+      ForceJacobian J;
+      const ForceTorque y =
+          TwoMarkerLawValue(static_cast<int>(k), in.t, km, derivs ? &J : nullptr, &law_error);
+      const Vec3 dpos = km.p_i - km.p_j;
+      const Vec3 Fs[2] = {y.force, -y.force};
+      const Vec3 Ts[2] = {y.torque, -y.torque - dpos.cross(y.force)};
+      Mat3x14 dFq[2], dTq[2], dFv[2], dTv[2];
+      if (derivs) {
+        const Eigen::Matrix<double, 6, 14> yq = J * xq, yv = J * xv;
+        dFq[0] = yq.topRows<3>();
+        dTq[0] = yq.bottomRows<3>();
+        dFv[0] = yv.topRows<3>();
+        dTv[0] = yv.bottomRows<3>();
+        const Mat3x14 ddq = xq.middleRows<3>(kPi) - xq.middleRows<3>(kPj);
+        const Mat3 Sd = Skew(dpos);
+        dFq[1] = -dFq[0];
+        dFv[1] = -dFv[0];
+        dTq[1] = -dTq[0] - Sd * dFq[0] + Skew(y.force) * ddq;
+        dTv[1] = -dTv[0] - Sd * dFv[0];
+      }
+      Vec14 gq = Vec14::Zero();
+      Mat14 kq, kv;
+      kq.setZero();
+      kv.setZero();
+      for (int s = 0; s < 2; ++s) {
+        if (l.offset[s] < 0) continue;
+        const Quat& e = l.e[s];
+        const Mat34 G = GMatrix(e);
+        const Mat3 A = RotationMatrix(e);
+        const Mat3 S = Skew(model.markers[s == 0 ? fe.i : fe.j].position);
+        const Mat43 Pt = 2 * G.transpose() * A.transpose();
+        const Mat43 P = 2 * G.transpose() * S * A.transpose();
+        gq.segment<3>(7 * s) += Fs[s];
+        gq.segment<4>(7 * s + 3) += P * Fs[s] + Pt * Ts[s];
+        if (!derivs) continue;
+        kq.block<3, 14>(7 * s, 0) += dFq[s];
+        kv.block<3, 14>(7 * s, 0) += dFv[s];
+        kq.block<4, 14>(7 * s + 3, 0) += P * dFq[s] + Pt * dTq[s];
+        kv.block<4, 14>(7 * s + 3, 0) += P * dFv[s] + Pt * dTv[s];
+        kq.block<4, 4>(7 * s + 3, 7 * s + 3) +=
+            2 * GtJacobian(S * A.transpose() * Fs[s]) + 2 * G.transpose() * S * BTransposeMatrix(e, Fs[s]) +
+            2 * GtJacobian(A.transpose() * Ts[s]) + 2 * G.transpose() * BTransposeMatrix(e, Ts[s]);
+      }
+      if (out.force)
+        for (int r = 0; r < 14; ++r)
+          if (l.offset[r / 7] >= 0) out.force[l.offset[r / 7] + r % 7] += gq[r];
+      if (sKq.active()) AddLocal(sKq, l, kq, Part::kAll, Part::kAll);
+      if (sKv.active()) AddLocal(sKv, l, kv, Part::kAll, Part::kAll);
+      continue;
+    }
     ForceExpressions& fx = force_expr[k];
     force_values[k] =
         ComputeForceValues(static_cast<int>(k), in.t, q, v, &fx, measure_values.data());
@@ -1229,6 +1402,12 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   }
 
   for (Sink& s : sink) s.End();
+  if (!law_error.empty()) {
+    // A user function's error is fatal (negative code): retrying with a smaller step
+    // would not change what the library reports.
+    error = law_error;
+    return -1;
+  }
   if (!spring_ok) {
     error = "spring_damper '" + model.forces[bad_spring].name + "': length zero";
     return 1;
@@ -1437,6 +1616,15 @@ double MultibodySystem::PotentialEnergy(double t, const double* q) const {
   std::vector<double> mvalues(m.measures.size(), 0.0);
   for (size_t k = 0; k < m.forces.size(); ++k) {
     const Force& f = m.forces[k];
+    if (f.type == ForceType::kBushing) {
+      im.Gather(im.BodyOf(f.i), im.BodyOf(f.j), q, im.zeros.data(), im.zeros.data(), l);
+      MarkerPairKinematics km;
+      im.TwoMarkerInputs(f, l, &km, nullptr, nullptr);
+      BushingParameters bp;
+      for (int c = 0; c < 6; ++c) bp.stiffness[c] = f.bushing_stiffness[c].Evaluate(im.params.data());
+      u += BushingPotential(bp, km);
+      continue;
+    }
     if (f.type != ForceType::kSpringDamper) continue;
     im.Gather(im.BodyOf(f.i), im.BodyOf(f.j), q, im.zeros.data(), im.zeros.data(), l);
     const double len = im.Separation(f.i, f.j).Value(l).norm();
@@ -1458,6 +1646,17 @@ void MultibodySystem::ForceAction(int element, double t, const double* q, const 
   Local l;
   const double* vv = v ? v : im.zeros.data();
   im.Gather(im.BodyOf(fe.i), im.BodyOf(fe.j), q, vv, im.zeros.data(), l);
+  if (Impl::TwoMarkerLaw(fe)) {
+    MarkerPairKinematics km;
+    im.TwoMarkerInputs(fe, l, &km, nullptr, nullptr);
+    std::string err;
+    const ForceTorque y = im.TwoMarkerLawValue(force, t, km, nullptr, &err);
+    if (!err.empty()) throw std::runtime_error(err);
+    Eigen::Map<Vec3> fo(f_out), to(t_out);
+    fo = y.force;
+    to = y.torque;
+    return;
+  }
   Vec3 f;
   Mat3x14 dq, dv;
   Impl::ForceExpressions fx = im.force_expr[force];

@@ -286,9 +286,9 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies:\n  - {name: b, geometry: {shape: mesh, file: a.stl}}\n"),
                        "body 'b': mesh file 'a.stl' not found"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: bushing, i: b.cm}\n"),
-                       "m.yaml:4:21: force 'f': force type 'bushing' is not supported yet"));
+                       "m.yaml:4:5: force 'f': missing required key 'stiffness'"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nforces:\n  - {name: f, type: user, i: b.cm}\n"),
-                       "force type 'user' is not supported yet"));
+                       "force 'f': missing required key 'library'"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\njoints:\n  - {name: j, type: gear, measures: [a, b], ratio: 2}\n"),
                        "m.yaml:4:38: joint 'j': 'measures': unknown measure 'a'"));
   // Time, measures and splines in force values load; an acceleration measure does not.

@@ -166,6 +166,7 @@ TEST(MultibodySystem, DerivativesMatchFiniteDifferences) {
     opt.bodies = 2 + seed % 3;
     opt.expression_forces = true;  // values over measures, t and splines
     opt.motion_gear = seed % 2 == 0;  // rheonomic motion constraints and a gear
+    opt.bushings = true;
     const Model model = RandomModel(rng, opt);
     MultibodySystem sys(model);
     const int nq = sys.num_coordinates(), nc = sys.num_constraints();
@@ -297,6 +298,7 @@ TEST(MultibodySystem, EvaluateDoesNotAllocate) {
   RandomModelOptions opt;
   opt.expression_forces = true;
   opt.motion_gear = true;
+  opt.bushings = true;
   const Model model = RandomModel(rng, opt);
   MultibodySystem sys(model);
   const RandomState s = MakeRandomState(rng, model, sys.num_constraints());

@@ -29,6 +29,9 @@ struct RandomModelOptions {
   // With measures: motion joints (a translational component, a distance, an angle;
   // values over t and spline(s, t)) and a gear between two angles.
   bool motion_gear = false;
+  // Bushings (random stiffness and damping, some entries zero): body-body, body-ground
+  // and ground-body (marker i on ground).
+  bool bushings = false;
 };
 
 // A smooth spline `s` for the expression elements (added once).
@@ -250,6 +253,25 @@ inline mbs::Model RandomModel(std::mt19937& rng, const RandomModelOptions& opt =
           for (int c = 0; c < 3; ++c) f.value[c] = C(uniform(-5, 5));
           add(f);
         }
+  }
+  if (opt.bushings) {
+    for (int k = 0; k < 3; ++k) {
+      Force f;
+      f.name = "b" + std::to_string(k);
+      f.type = ForceType::kBushing;
+      if (k == 2) {
+        f.i = pick(opt.ground_markers + 1);
+        f.j = body_marker();
+      } else {
+        f.i = body_marker();
+        f.j = k == 0 ? other_marker(f.i) : pick(opt.ground_markers + 1);
+      }
+      for (int c = 0; c < 6; ++c) {
+        f.bushing_stiffness[c] = C(c == k ? 0.0 : uniform(10, 100));
+        f.bushing_damping[c] = C(c == 5 - k ? 0.0 : uniform(0.5, 5));
+      }
+      m.forces.push_back(f);
+    }
   }
   if (opt.measures) {
     int n = 0;
