@@ -37,6 +37,13 @@ class MultibodySystem final : public dae::MechanicalSystem {
   // gear joints (m2 - m2_0) - r (m1 - m1_0), angles continued across +-pi from the
   // previous evaluation (so Evaluate keeps that much state). JointReaction gives zeros for
   // motion and gear joints (their multiplier is the driving effort).
+  // Bushing and user elements (mbs/bushing.h, mbs/user_force.h) get the marker
+  // kinematics of i and j (p = r + A s, R = A(e/|e|) O, v, w) and their 6x24 Jacobian is
+  // chained into dQ/dq and dQ/dv; bushing values are evaluated from the parameters at
+  // every call, user parameters when the system is built (NAME_init is called then; its
+  // error is a std::runtime_error "user force 'NAME': ..."). An error returned by a user
+  // function is caught in Evaluate: last_error() "user force 'NAME': ..." and a negative
+  // (fatal) code.
   const std::vector<std::string>& coordinate_names() const;
   const std::vector<std::string>& constraint_names() const;
   // For each constraint equation: the joint index, or -1 for a normalisation.
@@ -64,11 +71,13 @@ class MultibodySystem final : public dae::MechanicalSystem {
   // Reaction of joint k on body i at marker i, world axes: force and torque (3 + 3).
   void JointReaction(int joint, double t, const double* q, const double* lambda,
                      double* force, double* torque) const;
-  // Kinetic energy, and potential energy of gravity and of the spring_damper springs
-  // (k/2 (l - l0)^2 - preload (l - l0)); forces of type force/torque have none.
+  // Kinetic energy, and potential energy of gravity, of the spring_damper springs
+  // (k/2 (l - l0)^2 - preload (l - l0)) and of the bushings' springs (BushingPotential);
+  // forces of type force/torque/user have none.
   double KineticEnergy(const double* q, const double* v) const;
   double PotentialEnergy(double t, const double* q) const;
   // Action of force element `element` on marker i, world axes: force and torque (3 + 3).
+  // Throws std::runtime_error if a user function returns an error.
   void ForceAction(int element, double t, const double* q, const double* v, double* force,
                    double* torque) const;
 
