@@ -21,6 +21,8 @@ run verification/andrews/run.py
 run verification/oscillator/run.py
 run verification/crank_motion/run.py
 run verification/gear/run.py
+lib="$(dirname "$MBDAE")/examples/user_force/libmbdae_spring_damper.so"
+[ -f "$lib" ] && run verification/user_force/run.py --mbdae "$MBDAE" --library "$lib"
 if [ -x verification/malformed/run.sh ]; then
   echo "=== verification/malformed/run.sh"
   if verification/malformed/run.sh; then echo "--- ok"; else echo "--- FAILED: malformed"; failed=$((failed + 1)); fi
