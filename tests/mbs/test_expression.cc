@@ -16,15 +16,7 @@
 
 #include "mbs/spline.h"
 
-// Counts heap allocations, to show that Evaluate makes none.
-static int g_allocations = 0;
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "tests/support/count_allocations.h"
 
 namespace mbdae::mbs {
 namespace {
@@ -204,7 +196,7 @@ TEST(Expression, EvaluateIsRepeatableAndConst) {
   const double first = e.Evaluate(p);
   EXPECT_DOUBLE_EQ(first, 1.0 + 4.0);
   EXPECT_EQ(e.Evaluate(p), first);  // nothing left over from the first call
-  const int before = g_allocations;
+  const long before = g_allocations;
   double sum = 0;
   for (int k = 0; k < 100; ++k) sum += e.Evaluate(p);
   EXPECT_EQ(g_allocations, before);  // evaluation allocates nothing

@@ -14,15 +14,7 @@
 #include <string>
 #include <vector>
 
-// Counts heap allocations, to check that Evaluate does none.
-static long g_allocations = 0;
-void* operator new(std::size_t n) {
-  ++g_allocations;
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "tests/support/count_allocations.h"
 
 namespace mbdae::mbs {
 namespace {
