@@ -117,3 +117,17 @@ def markdown_table(header, rows):
     for r in rows:
         lines.append("| " + " | ".join(str(c) for c in r) + " |")
     return "\n".join(lines) + "\n"
+
+
+def finish_checks(runner, checks, md_lines, out_dir):
+    """Ends a verification script: appends the table of `checks` ((text, passed) pairs)
+    to `md_lines`, writes them to OUT/results.md, prints one line per check, removes the
+    runner's temporary files and returns the exit status (0 when every check passed)."""
+    md = list(md_lines) + ["| check | passed |", "|---|---|"]
+    md += ["| %s | %s |" % (text, "yes" if c else "NO") for text, c in checks]
+    with open(os.path.join(out_dir, "results.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    for text, c in checks:
+        print(("ok    " if c else "FAIL  ") + text)
+    runner.cleanup()
+    return 0 if all(c for _, c in checks) else 1

@@ -43,18 +43,11 @@ def main():
                        err <= 1e-10))
         if t[-1] < 10 - 1e-9 or abs(turns1) < 2:
             checks.append(("%s: the run reaches 10 s and wheel 1 turns at least twice" % name, False))
-    ok = all(c for _, c in checks)
     md = ["# Gear pair: results\n",
           "Produced by `verification/gear/run.py` (10 s, ratio -2, wheel 1 driven by 0.05 sin(t) N m).\n",
           "| integrator | turns of wheel 1 | turns of wheel 2 | max abs ratio error (rad) |",
-          "|---|---|---|---|"] + rows + ["", "| check | passed |", "|---|---|"]
-    md += ["| %s | %s |" % (text, "yes" if c else "NO") for text, c in checks]
-    with open(os.path.join(OUT, "results.md"), "w") as fh:
-        fh.write("\n".join(md) + "\n")
-    for text, c in checks:
-        print(("ok    " if c else "FAIL  ") + text)
-    runner.cleanup()
-    return 0 if ok else 1
+          "|---|---|---|---|"] + rows + [""]
+    return mr.finish_checks(runner, checks, md, OUT)
 
 
 if __name__ == "__main__":

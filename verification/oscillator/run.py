@@ -64,17 +64,9 @@ def main():
     err_b = relative_error(a["/measures/x"], exact(a.time, 1.5, 40.0, 0.8, 0.0, 0.5))
     checks.append(("oscillator.fds: max abs(x - exact) / max abs(exact) = %.3e <= 1e-8" % err_b, err_b <= 1e-8))
 
-    ok = all(c for _, c in checks)
     md = ["# Single-mass oscillator with a force expression over measures: results\n",
-          "Produced by `verification/oscillator/run.py` (IDA, rtol 1e-11, atol 1e-13, 3 s, 301 rows).\n",
-          "| check | passed |", "|---|---|"]
-    md += ["| %s | %s |" % (text, "yes" if c else "NO") for text, c in checks]
-    with open(os.path.join(OUT, "results.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
-    for text, c in checks:
-        print(("ok    " if c else "FAIL  ") + text)
-    runner.cleanup()
-    return 0 if ok else 1
+          "Produced by `verification/oscillator/run.py` (IDA, rtol 1e-11, atol 1e-13, 3 s, 301 rows).\n",]
+    return mr.finish_checks(runner, checks, md, OUT)
 
 
 if __name__ == "__main__":

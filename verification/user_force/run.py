@@ -64,18 +64,10 @@ def main():
     diff = float(np.max(np.abs(u["/q"] - b["/q"])))
     checks.append(("IDA rtol 1e-10 (adaptive steps): max abs difference of /q = %.1e <= 1e-7" % diff, diff <= 1e-7))
 
-    ok = all(c for _, c in checks)
     md = ["# User-force library vs the built-in spring_damper: results\n",
           "Produced by `verification/user_force/run.py` (user.yaml with the example library "
-          "examples/user_force/linear_spring_damper.c vs builtin.yaml, 2 s, 201 rows).\n",
-          "| check | passed |", "|---|---|"]
-    md += ["| %s | %s |" % (text, "yes" if c else "NO") for text, c in checks]
-    with open(os.path.join(OUT, "results.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
-    for text, c in checks:
-        print(("ok    " if c else "FAIL  ") + text)
-    runner.cleanup()
-    return 0 if ok else 1
+          "examples/user_force/linear_spring_damper.c vs builtin.yaml, 2 s, 201 rows).\n",]
+    return mr.finish_checks(runner, checks, md, OUT)
 
 
 if __name__ == "__main__":
