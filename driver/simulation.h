@@ -111,6 +111,9 @@ struct SimulationSummary {
   long rows = 0;
   dae::Summary counters;            // of the integrator
   double wall_time = 0;             // seconds, the integration and output
+  // Process CPU seconds spent in the integrator (AdvanceTo), without the output rows:
+  // the cost measure of the work-precision studies.
+  double solver_cpu_time = 0;
   double max_position_violation = 0;  // max |C| of the kept system over the rows
   double max_velocity_violation = 0;  // max |C_q v + C_t| over the rows
   std::vector<std::string> redundant_constraints;

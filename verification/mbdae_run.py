@@ -95,6 +95,12 @@ class Results:
             raise RunError("no output at t = %g (nearest %r)" % (t, self.time[k]))
         return self[key][k]
 
+    def cpu_time(self):
+        """Process CPU seconds spent in the integrator (without the output rows)."""
+        if "solver_cpu_time" not in self.attrs:
+            raise RunError("no solver_cpu_time attribute; attributes: %s" % sorted(self.attrs))
+        return float(self.attrs["solver_cpu_time"])
+
     def wall_time(self):
         for k in ("wall_time", "wall_time_s", "wall_seconds"):
             if k in self.attrs:
@@ -119,14 +125,25 @@ def markdown_table(header, rows):
     return "\n".join(lines) + "\n"
 
 
-def finish_checks(runner, checks, md_lines, out_dir):
+def finish_checks(runner, checks, md_lines, out_dir, summary=None):
     """Ends a verification script: appends the table of `checks` ((text, passed) pairs)
     to `md_lines`, writes them to OUT/results.md, prints one line per check, removes the
-    runner's temporary files and returns the exit status (0 when every check passed)."""
+    runner's temporary files and returns the exit status (0 when every check passed).
+
+    Also writes OUT/summary.json, which the report (verification/report.py) collects:
+    {"checks": [{"text", "passed"}], "figures": [...], "csv": [...], ...} with the
+    entries of `summary` (a dict: "title", "figures" and "csv" as file names in OUT,
+    "headline" a one-line result, "wp" the work-precision rows, or anything else)."""
+    import json
     md = list(md_lines) + ["| check | passed |", "|---|---|"]
     md += ["| %s | %s |" % (text, "yes" if c else "NO") for text, c in checks]
     with open(os.path.join(out_dir, "results.md"), "w") as f:
         f.write("\n".join(md) + "\n")
+    data = dict(summary or {})
+    data["checks"] = [{"text": text, "passed": bool(c)} for text, c in checks]
+    with open(os.path.join(out_dir, "summary.json"), "w") as f:
+        json.dump(data, f, indent=1, default=float)
+        f.write("\n")
     for text, c in checks:
         print(("ok    " if c else "FAIL  ") + text)
     runner.cleanup()
