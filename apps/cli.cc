@@ -163,6 +163,12 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       only_simulate();
       no_value();
       cl.overrides.hht_modified = false;
+    } else if (arg == "--hht-form") {
+      only_simulate();
+      const std::string v = value();
+      if (v != "equilibrium" && v != "negrut")
+        throw UsageError("--hht-form: expected equilibrium or negrut, got '" + v + "'");
+      cl.overrides.hht_form = v;
     } else if (arg == "--rtol") {
       only_simulate();
       cl.overrides.ida_rtol = number();

@@ -1,12 +1,20 @@
 // HHT-alpha for the index-3 mechanical DAE (see dae/hht.h and docs/hht.md).
 //
-// Unknowns of each step: a_{n+1}, lambda_{n+1}. Residual (Negrut, Rampalli, Ottarsson,
-// Sajdak, J. Comput. Nonlinear Dynam. 2 (2007) 73-85):
-//   r_q = (M a)_{n+1} / (1 + alpha) + F_{n+1} - alpha / (1 + alpha) F_n,   F = C_q^T lambda - Q
+// Unknowns of each step: a_{n+1}, lambda_{n+1}; F = C_q^T lambda - Q.
+// Form kNegrut (Negrut, Rampalli, Ottarsson, Sajdak, J. Comput. Nonlinear Dynam. 2
+// (2007) 73-85), Newmark's formulas on a:
+//   r_q = (M a)_{n+1} / (1 + alpha) + F_{n+1} - alpha / (1 + alpha) F_n
 //   r_c = C(q_{n+1}, t_{n+1}) / (beta h^2)
-// with q_{n+1}, v_{n+1} from Newmark's formulas. Newton matrix
-//   [ M/(1+alpha) + beta h^2 (K_Ma/(1+alpha) + K_C - Q_q) - gamma h Q_v ,  C_q^T ]
-//   [ C_q                                                              ,  0     ]
+//   Newton matrix [ M/(1+alpha) + beta h^2 (K_Ma/(1+alpha) + K_C - Q_q) - gamma h Q_v , C_q^T ]
+//                 [ C_q                                                               , 0     ]
+// Form kEquilibrium (generalized-alpha, Arnold & Bruls, Multibody Syst. Dyn. 18 (2007)
+// 185-202, alpha_m = 0, alpha_f = -alpha), Newmark's formulas on the acceleration-like
+// abar_{n+1} = (1 + alpha) a_{n+1} - alpha a_n (abar_0 = a_0):
+//   r_q = ((M a)_{n+1} + F_{n+1}) / (1 + alpha)
+//   r_c = C(q_{n+1}, t_{n+1}) / ((1 + alpha) beta h^2)
+//   Newton matrix [ M/(1+alpha) + beta h^2 (K_Ma + K_C - Q_q) - gamma h Q_v , C_q^T/(1+alpha) ]
+//                 [ C_q                                                    , 0               ]
+//   (dq_{n+1}/da_{n+1} = (1 + alpha) beta h^2, dv_{n+1}/da_{n+1} = (1 + alpha) gamma h).
 //
 // Quaternion groups, `modified = true`: OUR modification (not the formulas of Sherif et
 // al. 2019, which the material available to us did not reveal). For each group of Euler
@@ -62,6 +70,21 @@ bool HhtOptions::IsValid(std::string* error) const {
   return true;
 }
 
+const char* HhtFormName(HhtOptions::Form form) {
+  return form == HhtOptions::Form::kNegrut ? "negrut" : "equilibrium";
+}
+
+bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {
+  if (name == "equilibrium") {
+    *form = HhtOptions::Form::kEquilibrium;
+  } else if (name == "negrut") {
+    *form = HhtOptions::Form::kNegrut;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 namespace {
 
 // Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'.
@@ -97,6 +120,9 @@ class HhtIntegrator final : public Integrator {
     alpha_ = opt_.alpha;
     beta_ = (1 - alpha_) * (1 - alpha_) / 4;
     gamma_ = 0.5 - alpha_;
+    equilibrium_ = opt_.form == HhtOptions::Form::kEquilibrium;
+    // dq_{n+1}/da_{n+1} = mix_ beta h^2, dv_{n+1}/da_{n+1} = mix_ gamma h.
+    mix_ = equilibrium_ ? 1 + alpha_ : 1.0;
     for (int g : sys_.quaternion_offsets())
       if (g < 0 || g + 4 > nq_)
         throw std::invalid_argument("HHT: quaternion offset " + std::to_string(g) +
@@ -138,7 +164,11 @@ class HhtIntegrator final : public Integrator {
     klu_ = std::make_unique<KluSolver>(asm_.pattern());
 
     const int n = nq_ + nc_;
-    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_}) v->assign(nq_, 0.0);
+    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_})
+      v->assign(nq_, 0.0);
+    const size_t ng = sys_.quaternion_offsets().size();
+    wbar_.assign(3 * ng, 0.0);
+    wbar_new_.assign(3 * ng, 0.0);
     for (auto* v : {&lamn_, &con_}) v->assign(nc_, 0.0);
     res_.assign(n, 0.0);
     x_.assign(n, 0.0);
@@ -160,6 +190,16 @@ class HhtIntegrator final : public Integrator {
     jacobian_valid_ = false;
     jacobian_h_ = 0;
     steps_with_jacobian_ = 0;
+    // Acceleration-like variables of the equilibrium form: abar_0 = a_0.
+    abar_ = state_.a;
+    {
+      const std::vector<int>& groups = sys_.quaternion_offsets();
+      for (size_t k = 0; k < groups.size(); ++k) {
+        const int g = groups[k];
+        Gx(&state_.q[g], &state_.a[g], &wbar_[3 * k]);
+        for (int i = 0; i < 3; ++i) wbar_[3 * k + i] *= 2;
+      }
+    }
     // F_0 = C_q^T lambda_0 - Q(q_0, v_0, t_0).
     initialized_ = EvaluateF(state_.t, state_.q.data(), state_.v.data(), state_.lambda.data(),
                              fn_.data()) == 0;
@@ -242,7 +282,7 @@ class HhtIntegrator final : public Integrator {
   const Summary& summary() const override { return summary_; }
   std::string name() const override {
     return std::string(opt_.modified ? "HHT (modified for Euler parameters)" : "HHT") +
-           ", alpha = " + std::to_string(alpha_);
+           ", alpha = " + std::to_string(alpha_) + ", form " + HhtFormName(opt_.form);
   }
 
  private:
@@ -274,28 +314,47 @@ class HhtIntegrator final : public Integrator {
   }
 
   // q_{n+1}, v_{n+1} from a_{n+1} (Newmark, and the modified map for quaternions).
+  // Newmark acts on a (kNegrut) or on abar (kEquilibrium); abar_new_ and wbar_new_
+  // receive abar_{n+1} and the groups' omegabar'_{n+1}.
   void Kinematics(double h) {
     const std::vector<double>& q0 = state_.q;
     const std::vector<double>& v0 = state_.v;
-    const std::vector<double>& a0 = state_.a;
+    const std::vector<double>& a0 = equilibrium_ ? abar_ : state_.a;
+    for (int i = 0; i < nq_; ++i)
+      abar_new_[i] = equilibrium_ ? (1 + alpha_) * an_[i] - alpha_ * state_.a[i] : an_[i];
+    const std::vector<double>& a1 = abar_new_;
     for (int i = 0; i < nq_; ++i) {
-      qn_[i] = q0[i] + h * v0[i] + h * h * ((0.5 - beta_) * a0[i] + beta_ * an_[i]);
-      vn_[i] = v0[i] + h * ((1 - gamma_) * a0[i] + gamma_ * an_[i]);
+      qn_[i] = q0[i] + h * v0[i] + h * h * ((0.5 - beta_) * a0[i] + beta_ * a1[i]);
+      vn_[i] = v0[i] + h * ((1 - gamma_) * a0[i] + gamma_ * a1[i]);
     }
     if (!opt_.modified) return;
-    for (int g : sys_.quaternion_offsets()) {
+    const std::vector<int>& groups = sys_.quaternion_offsets();
+    for (size_t grp = 0; grp < groups.size(); ++grp) {
+      const int g = groups[grp];
       const double* e0 = &q0[g];
       double* e1 = &qn_[g];
       // G at the previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start.
       const double* eg = &e_iter_[g];
       double w0[3], dw0[3], dw1[3], th[3], w1[3];
       Gx(e0, &v0[g], w0);
-      Gx(e0, &a0[g], dw0);
       Gx(eg, &an_[g], dw1);
+      if (equilibrium_) {
+        double dwn[3];
+        Gx(e0, &state_.a[g], dwn);
+        for (int k = 0; k < 3; ++k) {
+          dw0[k] = wbar_[3 * grp + k];
+          dw1[k] = 2 * ((1 + alpha_) * dw1[k] - alpha_ * dwn[k]);
+        }
+      } else {
+        Gx(e0, &a0[g], dw0);
+        for (int k = 0; k < 3; ++k) {
+          dw0[k] *= 2;
+          dw1[k] *= 2;
+        }
+      }
       for (int k = 0; k < 3; ++k) {
         w0[k] *= 2;
-        dw0[k] *= 2;
-        dw1[k] *= 2;
+        wbar_new_[3 * grp + k] = dw1[k];
         th[k] = h * w0[k] + h * h * ((0.5 - beta_) * dw0[k] + beta_ * dw1[k]);
         w1[k] = w0[k] + h * ((1 - gamma_) * dw0[k] + gamma_ * dw1[k]);
       }
@@ -311,7 +370,7 @@ class HhtIntegrator final : public Integrator {
       double s = 0;
       for (int k = 0; k < 4; ++k) {
         ed[k] *= 0.5;
-        s += eu[k] * an_[g + k] + ed[k] * ed[k];
+        s += eu[k] * a1[g + k] + ed[k] * ed[k];
       }
       const double rho = beta_ * h * h * s;
       for (int k = 0; k < 4; ++k) {
@@ -340,10 +399,14 @@ class HhtIntegrator final : public Integrator {
     MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq),
                          mat_[static_cast<int>(Matrix::kConstraintDq)].data(), 1.0, lamn_.data(),
                          f_.data());
-    for (int i = 0; i < nq_; ++i) res_[i] = f_[i] - alpha_ * s * fn_[i];
+    if (equilibrium_) {
+      for (int i = 0; i < nq_; ++i) res_[i] = s * f_[i];
+    } else {
+      for (int i = 0; i < nq_; ++i) res_[i] = f_[i] - alpha_ * s * fn_[i];
+    }
     MultiplyAdd(sys_.pattern(Matrix::kMass), mat_[static_cast<int>(Matrix::kMass)].data(), s,
                 an_.data(), res_.data());
-    const double sc = 1 / (beta_ * h * h);
+    const double sc = 1 / (mix_ * beta_ * h * h);
     for (int j = 0; j < nc_; ++j) res_[nq_ + j] = sc * con_[j];
     for (double r : res_)
       if (!std::isfinite(r)) return 1;
@@ -371,11 +434,12 @@ class HhtIntegrator final : public Integrator {
     const double s = 1 / (1 + alpha_), bh2 = beta_ * h * h;
     asm_.SetZero(jac_.data());
     asm_.Accumulate(b_mass_, M(Matrix::kMass), s, jac_.data());
-    asm_.Accumulate(b_kma_, M(Matrix::kMassTimesAccDq), bh2 * s, jac_.data());
+    asm_.Accumulate(b_kma_, M(Matrix::kMassTimesAccDq), equilibrium_ ? bh2 : bh2 * s,
+                    jac_.data());
     asm_.Accumulate(b_kc_, M(Matrix::kConstraintTDq), bh2, jac_.data());
     asm_.Accumulate(b_qq_, M(Matrix::kForceDq), -bh2, jac_.data());
     asm_.Accumulate(b_qv_, M(Matrix::kForceDv), -gamma_ * h, jac_.data());
-    asm_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), 1.0, jac_.data());
+    asm_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), equilibrium_ ? s : 1.0, jac_.data());
     asm_.Accumulate(b_cq_, M(Matrix::kConstraintDq), 1.0, jac_.data());
     ++summary_.factorizations;
     if (!klu_->Factor(jac_.data(), error)) return 1;
@@ -390,8 +454,8 @@ class HhtIntegrator final : public Integrator {
   double CorrectionNorm(double h) const {
     double sum = 0;
     for (int i = 0; i < nq_; ++i) {
-      const double dq = beta_ * h * h * x_[i] / (1 + std::abs(qn_[i]));
-      const double dv = gamma_ * h * x_[i] / (1 + std::abs(vn_[i]));
+      const double dq = mix_ * beta_ * h * h * x_[i] / (1 + std::abs(qn_[i]));
+      const double dv = mix_ * gamma_ * h * x_[i] / (1 + std::abs(vn_[i]));
       sum += dq * dq + dv * dv;
     }
     return std::sqrt(sum / (2 * nq_));
@@ -488,6 +552,7 @@ class HhtIntegrator final : public Integrator {
         prev_norm = norm;
       }
       if (converged) {
+        if (equilibrium_) return StepResult::kOk;
         // F_{n+1} at the converged state for the next step's HHT term.
         const int rc = EvaluateF(t1, qn_.data(), vn_.data(), lamn_.data(), f_.data());
         if (rc < 0) {
@@ -509,13 +574,15 @@ class HhtIntegrator final : public Integrator {
   }
 
   // Weighted RMS of the local position error estimate (beta - 1/6) h^2 (a_{n+1} - a_n)
+  // (abar in the equilibrium form, the variable Newmark's formulas act on)
   // (Zienkiewicz & Xie, Earthquake Eng. Struct. Dyn. 20 (1991) 871-887; the same
   // leading Newmark term is the basis of the estimate in Negrut et al. 2007).
   double ErrorNorm(double h) const {
     const double tol = opt_.tolerance;
     double sum = 0;
     for (int i = 0; i < nq_; ++i) {
-      const double e = (beta_ - 1.0 / 6.0) * h * h * (an_[i] - state_.a[i]);
+      const double e = equilibrium_ ? (beta_ - 1.0 / 6.0) * h * h * (abar_new_[i] - abar_[i])
+                                    : (beta_ - 1.0 / 6.0) * h * h * (an_[i] - state_.a[i]);
       const double w = tol + tol * std::max(std::abs(qn_[i]), std::abs(state_.q[i]));
       sum += (e / w) * (e / w);
     }
@@ -528,7 +595,12 @@ class HhtIntegrator final : public Integrator {
     std::copy(vn_.begin(), vn_.end(), state_.v.begin());
     std::copy(an_.begin(), an_.end(), state_.a.begin());
     std::copy(lamn_.begin(), lamn_.end(), state_.lambda.begin());
-    std::copy(f_.begin(), f_.end(), fn_.begin());
+    if (equilibrium_) {
+      abar_.swap(abar_new_);
+      wbar_.swap(wbar_new_);
+    } else {
+      std::copy(f_.begin(), f_.end(), fn_.begin());
+    }
     ++summary_.steps_accepted;
     ++steps_with_jacobian_;
     summary_.t_reached = t1;
@@ -539,6 +611,8 @@ class HhtIntegrator final : public Integrator {
   HhtOptions opt_;
   int nq_ = 0, nc_ = 0;
   double alpha_ = 0, beta_ = 0, gamma_ = 0;
+  bool equilibrium_ = true;  // opt_.form == kEquilibrium
+  double mix_ = 1;           // 1 + alpha (equilibrium form) or 1
   std::vector<double> mat_[kNumMatrices];
   BlockAssembler asm_;
   int b_mass_ = 0, b_kma_ = 0, b_kc_ = 0, b_qq_ = 0, b_qv_ = 0, b_cqt_ = 0, b_cq_ = 0,
@@ -548,6 +622,8 @@ class HhtIntegrator final : public Integrator {
   // Work vectors (sized in the constructor; no allocation while stepping).
   std::vector<double> qn_, vn_, an_, lamn_, fn_, f_, force_, con_, res_, x_;
   std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)
+  // Equilibrium form: abar_n and abar_{n+1}; per quaternion group omegabar'_n, _{n+1}.
+  std::vector<double> abar_, abar_new_, wbar_, wbar_new_;
   State state_;
   Summary summary_;
   std::string message_;

@@ -12,6 +12,18 @@
 namespace mbdae::dae {
 
 struct HhtOptions {
+  // Which residual the step solves (docs/hht.md, "Forms"):
+  //  kEquilibrium (default): the equations of motion hold exactly at t_{n+1},
+  //    M(q_{n+1}) a_{n+1} + F_{n+1} = 0, and Newmark's formulas use the acceleration-like
+  //    variable abar_{n+1} = (1 + alpha) a_{n+1} - alpha a_n: the generalized-alpha scheme
+  //    of Arnold & Bruls, Multibody Syst. Dyn. 18 (2007) 185-202, with alpha_m = 0,
+  //    alpha_f = -alpha (HHT's parameters). Second order in q and v also when M depends
+  //    on q.
+  //  kNegrut: the residual of Negrut et al. 2007, (M a)_{n+1}/(1+alpha) + F_{n+1}
+  //    - alpha/(1+alpha) F_n = 0 (forces mixed at t_n and t_{n+1}); identical to the above
+  //    for a constant M and linear forces, first order for alpha < 0 when M depends on q.
+  enum class Form { kEquilibrium, kNegrut };
+  Form form = Form::kEquilibrium;
   // Numerical damping, in [-1/3, 0]; beta = (1 - alpha)^2 / 4, gamma = 1/2 - alpha.
   double alpha = -0.1;
   // Step size: the fixed step, or the initial step when adaptive.
@@ -40,6 +52,10 @@ struct HhtOptions {
 
   bool IsValid(std::string* error) const;
 };
+
+// "equilibrium" | "negrut"; and the inverse (false for an unknown name).
+const char* HhtFormName(HhtOptions::Form form);
+bool ParseHhtForm(const std::string& name, HhtOptions::Form* form);
 
 std::unique_ptr<Integrator> MakeHhtIntegrator(MechanicalSystem& system, const HhtOptions& options);
 

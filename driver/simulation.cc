@@ -42,6 +42,8 @@ dae::HhtOptions HhtFrom(const mbs::SimulationSettings& s) {
   o.adaptive = s.hht_adaptive;
   o.tolerance = s.hht_tolerance;
   o.modified = s.hht_modified;
+  if (!dae::ParseHhtForm(s.hht_form, &o.form))
+    throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
   return o;
 }
 
@@ -85,6 +87,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_tolerance) s.hht_tolerance = *o.hht_tolerance;
   if (o.hht_adaptive) s.hht_adaptive = *o.hht_adaptive;
   if (o.hht_modified) s.hht_modified = *o.hht_modified;
+  if (o.hht_form) s.hht_form = *o.hht_form;
   if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
   if (!(s.t_end > 0) || !std::isfinite(s.t_end))
@@ -424,6 +427,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
     file.SetAttribute("hht_adaptive", settings.hht_adaptive ? 1 : 0);
     file.SetAttribute("hht_tolerance", settings.hht_tolerance);
     file.SetAttribute("hht_modified", settings.hht_modified ? 1 : 0);
+    file.SetAttribute("hht_form", settings.hht_form);
   } else {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);

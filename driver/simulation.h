@@ -39,6 +39,7 @@ struct SettingsOverrides {
   std::optional<mbs::IntegratorKind> integrator;
   std::optional<double> hht_alpha, hht_step, hht_tolerance;
   std::optional<bool> hht_adaptive, hht_modified;
+  std::optional<std::string> hht_form;
   std::optional<double> ida_rtol, ida_atol;
 };
 

@@ -1101,7 +1101,7 @@ class Loader {
       s.integrator = Enum<IntegratorKind>(n, element, "integrator", {{"hht", IntegratorKind::kHht}, {"ida", IntegratorKind::kIda}});
     }
     if (const YAML::Node h = node["hht"]) {
-      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified"}, "hht");
+      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form"}, "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
         if (!(s.hht_alpha >= -1.0 / 3.0 - 1e-15 && s.hht_alpha <= 0)) {
@@ -1112,6 +1112,10 @@ class Loader {
       if (const YAML::Node n = h["adaptive"]) s.hht_adaptive = Bool(n, element, "adaptive");
       if (const YAML::Node n = h["tolerance"]) s.hht_tolerance = positive(n, "hht tolerance");
       if (const YAML::Node n = h["modified"]) s.hht_modified = Bool(n, element, "modified");
+      if (const YAML::Node n = h["form"]) {
+        s.hht_form = Enum<std::string>(n, element, "form",
+                                       {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});
+      }
     }
     if (const YAML::Node i = node["ida"]) {
       CheckKeys(i, element, {"rtol", "atol"}, "ida");

@@ -150,6 +150,9 @@ struct SimulationSettings {
   bool hht_adaptive = false;
   double hht_tolerance = 1e-6;
   bool hht_modified = true;
+  // The residual of the step: "equilibrium" (generalized-alpha with HHT's parameters) or
+  // "negrut" (Negrut et al. 2007); see docs/hht.md.
+  std::string hht_form = "equilibrium";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
 };

@@ -274,7 +274,8 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   s << "  integrator: " << (sim.integrator == IntegratorKind::kHht ? "hht" : "ida") << "\n";
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
-    << ", modified: " << (sim.hht_modified ? "true" : "false") << "}\n";
+    << ", modified: " << (sim.hht_modified ? "true" : "false") << ", form: " << sim.hht_form
+    << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol) << "}\n";
   return s.str();
 }

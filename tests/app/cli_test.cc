@@ -23,7 +23,7 @@ TEST(CommandLine, SimulateWithEveryOption) {
   CommandLine cl = ParseCommandLine(
       {"simulate", "--t-end", "2.5", "m.yaml", "-o", "out.h5", "--integrator=ida", "--output-step",
        "1e-3", "--step", "1e-4", "--alpha", "-0.2", "--adaptive", "--tolerance", "1e-7",
-       "--no-modified", "--rtol", "1e-6", "--atol", "1e-9", "--set", "k=3", "l0=0.5", "--set",
+       "--no-modified", "--hht-form", "negrut", "--rtol", "1e-6", "--atol", "1e-9", "--set", "k=3", "l0=0.5", "--set",
        "m=-2e-1", "--quiet"});
   EXPECT_EQ(cl.command, Command::kSimulate);
   EXPECT_EQ(cl.model_path, "m.yaml");
@@ -36,6 +36,7 @@ TEST(CommandLine, SimulateWithEveryOption) {
   EXPECT_TRUE(*cl.overrides.hht_adaptive);
   EXPECT_EQ(*cl.overrides.hht_tolerance, 1e-7);
   EXPECT_FALSE(*cl.overrides.hht_modified);
+  EXPECT_EQ(*cl.overrides.hht_form, "negrut");
   EXPECT_EQ(*cl.overrides.ida_rtol, 1e-6);
   EXPECT_EQ(*cl.overrides.ida_atol, 1e-9);
   ASSERT_EQ(cl.parameter_overrides.size(), 3u);
@@ -72,6 +73,7 @@ TEST(CommandLine, MistakesAreUsageErrors) {
       {"simulate", "m.yaml", "--t-end", "1s"},
       {"simulate", "m.yaml", "--step", "nan"},
       {"simulate", "m.yaml", "--integrator", "rk4"},
+      {"simulate", "m.yaml", "--hht-form", "newmark"},
       {"simulate", "m.yaml", "--set", "k"},
       {"simulate", "m.yaml", "--set", "k=x"},
       {"simulate", "m.yaml", "--adaptive=1"},

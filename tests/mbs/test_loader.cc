@@ -196,6 +196,7 @@ TEST(Loader, EveryKey) {
   EXPECT_TRUE(sim.hht_adaptive);
   EXPECT_EQ(sim.hht_tolerance, 1e-7);
   EXPECT_FALSE(sim.hht_modified);
+  EXPECT_EQ(sim.hht_form, "negrut");
   EXPECT_EQ(sim.ida_rtol, 1e-6);
   EXPECT_EQ(sim.ida_atol, 1e-9);
   EXPECT_EQ(m.file, ModelPath("every_key.yaml"));
@@ -211,6 +212,7 @@ TEST(Loader, MinimalModelAndDefaults) {
   EXPECT_EQ(m.simulation.t_end, defaults.t_end);
   EXPECT_EQ(m.simulation.integrator, IntegratorKind::kHht);
   EXPECT_TRUE(m.simulation.hht_modified);
+  EXPECT_EQ(m.simulation.hht_form, "equilibrium");
 }
 
 TEST(Loader, ParameterOverrides) {
