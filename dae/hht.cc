@@ -36,6 +36,12 @@
 // dependence of e_{n+1} on G(e_{n+1}) is resolved inside the Newton iteration (G is
 // taken at the previous iterate); the Newton matrix is the classical one, which is the
 // first-order approximation of the modified map (dq/da = beta h^2 I, dv/da = gamma h I).
+// In the kEquilibrium form omega' is replaced by the acceleration-like body quantity
+// omegabar'_{n+1} = (1 + alpha) 2 G(e_{n+1}) a_{n+1} - alpha 2 G(e_n) a_n (stored per
+// group; omegabar'_0 = 2 G(e_0) a_0), and rho = (1 + alpha) beta h^2 s, the radial
+// velocity term (1 + alpha) gamma h s e_{n+1}: s stays the defect of the true a_{n+1}
+// (so its normalisation part holds at t_{n+1}), and the Newton matrix is again the
+// first-order approximation of the map (dq/da = (1 + alpha) beta h^2 I, ...).
 #include "dae/hht.h"
 
 #include <algorithm>
@@ -370,12 +376,14 @@ class HhtIntegrator final : public Integrator {
       double s = 0;
       for (int k = 0; k < 4; ++k) {
         ed[k] *= 0.5;
-        s += eu[k] * a1[g + k] + ed[k] * ed[k];
+        s += eu[k] * an_[g + k] + ed[k] * ed[k];
       }
-      const double rho = beta_ * h * h * s;
+      // The radial updates carry the factor mix_ of dq/da and dv/da, so that the Newton
+      // matrix is their first-order approximation in both forms.
+      const double rho = mix_ * beta_ * h * h * s;
       for (int k = 0; k < 4; ++k) {
         e1[k] = (1 + rho) * eu[k];
-        ed[k] += gamma_ * h * s * eu[k];
+        ed[k] += mix_ * gamma_ * h * s * eu[k];
       }
     }
   }
