@@ -101,6 +101,10 @@ class Case:
         self.status, self.message = "failed", ""
 
 
+def fixed_setting(h, scheme, form):
+    return "h = %.4g, %s, %s form" % (h, scheme, form)
+
+
 def run_case(runner, case, ref_sol):
     path, proc = runner.simulate(MODEL, ["--t-end", repr(T_END), "--output-step", repr(OUTPUT_STEP)]
                                  + case.args, "ht", check=False)
@@ -205,25 +209,30 @@ def main():
         steps = [1e-4, 5e-5]
         tols = [1e-6]
         rtols = [1e-6, 1e-8]
+        forms = ["equilibrium"]
     else:
         steps = [4e-3 / 2**k for k in range(9)]
         tols = [10.0 ** -k for k in range(3, 10)]
         rtols = [10.0 ** -k for k in range(4, 12)]
+        forms = ["equilibrium", "negrut"]
     cases = []
-    for scheme in ("--modified", "--no-modified"):
-        for h in steps:
-            cases.append(Case("hht-fixed", "h = %.4g, %s" % (h, "modified" if scheme == "--modified" else "classical"),
-                              ["--integrator", "hht", "--alpha", repr(ALPHA), "--step", repr(h), scheme]))
+    for form in forms:
+        for scheme in ("modified", "classical"):
+            for h in steps:
+                cases.append(Case("hht-fixed", fixed_setting(h, scheme, form),
+                                  ["--integrator", "hht", "--alpha", repr(ALPHA), "--step", repr(h),
+                                   "--" + ("modified" if scheme == "modified" else "no-modified"),
+                                   "--hht-form", form]))
     for tol in tols:
-        cases.append(Case("hht-adaptive", "tol = %.0e, modified" % tol,
+        cases.append(Case("hht-adaptive", "tol = %.0e, modified, equilibrium form" % tol,
                           ["--integrator", "hht", "--alpha", repr(ALPHA), "--adaptive", "--step", "1e-4",
-                           "--tolerance", repr(tol), "--modified"]))
+                           "--tolerance", repr(tol), "--modified", "--hht-form", "equilibrium"]))
     for rtol in rtols:
         cases.append(Case("ida", "rtol = atol = %.0e" % rtol,
                           ["--integrator", "ida", "--rtol", repr(rtol), "--atol", repr(rtol)]))
     for c in cases:
         run_case(runner, c, ref)
-        print("%-12s %-26s %s" % (c.integrator, c.setting, "error %.3e  cpu %.4f s  steps %d (+%d rejected)" % (
+        print("%-12s %-40s %s" % (c.integrator, c.setting, "error %.3e  cpu %.4f s  steps %d (+%d rejected)" % (
             c.error, c.cpu, c.steps, c.rejected) if c.status == "done" else "FAILED: " + c.message))
     cases.append(tight)
     failed = [c for c in cases if c.status != "done"]
@@ -239,27 +248,36 @@ def main():
                         "%.6e" % c.error if c.error is not None else "", c.steps if c.steps is not None else "",
                         c.status])
 
-    # convergence of HHT and the modified scheme's advantage
+    # convergence of the fixed-step HHT series
+    def series(scheme, form):
+        return [(h, c) for h in steps for c in cases if c.setting == fixed_setting(h, scheme, form)]
+
     orders = {}
-    for name in ("modified", "classical"):
-        errs = [(h, c.error) for h in steps for c in cases
-                if c.setting == "h = %.4g, %s" % (h, name) and c.status == "done"]
-        orders[name] = [math.log2(errs[k][1] / errs[k + 1][1]) for k in range(len(errs) - 1)]
-    # orders of the halvings from h <= 5e-4 (the larger steps are outside the asymptotic range)
-    fine = {n: [p for h, p in zip(steps[:-1], orders[n]) if h <= 5e-4] for n in orders}
-    conv_ok = all(len(v) >= 1 and min(v) >= 0.8 for v in fine.values())
-    checks.append(("HHT fixed step converges: observed orders of the halvings from h <= 5e-4: modified %s, classical %s "
-                   "(requirement >= 0.8)" % (", ".join("%.2f" % p for p in fine["modified"]),
-                                             ", ".join("%.2f" % p for p in fine["classical"])), conv_ok))
-    ratios = []
-    for h in steps:
-        m = [c for c in cases if c.setting == "h = %.4g, modified" % h and c.status == "done"]
-        k = [c for c in cases if c.setting == "h = %.4g, classical" % h and c.status == "done"]
-        if m and k:
-            ratios.append(k[0].error / m[0].error)
-    checks.append(("modified scheme at least 5 times more accurate than the classical one at every h "
-                   "(ratios %s)" % ", ".join("%.0f" % x for x in ratios),
-                   len(ratios) == len(steps) and min(ratios) >= 5))
+    for form in forms:
+        for scheme in ("modified", "classical"):
+            errs = [(h, c.error) for h, c in series(scheme, form) if c.status == "done"]
+            orders[(scheme, form)] = [(errs[k][0], math.log2(errs[k][1] / errs[k + 1][1]))
+                                      for k in range(len(errs) - 1)]
+    # the halvings from h <= 5e-4 (at the larger steps the spin per step is 0.15 rad and more)
+    fine = {key: [p for h, p in v if h <= 5e-4] for key, v in orders.items()}
+
+    def fmt(v):
+        return ", ".join("%.2f" % p for p in v) or "none"
+    for scheme in ("modified", "classical"):
+        v = fine[(scheme, "equilibrium")]
+        checks.append(("HHT fixed step, %s scheme, equilibrium form (the default): observed orders of the halvings "
+                       "from h <= 5e-4 %s (requirement: each in 2 +- 0.3)" % (scheme, fmt(v)),
+                       len(v) >= 1 and all(abs(p - 2.0) <= 0.3 for p in v)))
+    if "negrut" in forms:
+        v = fine[("modified", "negrut")] + fine[("classical", "negrut")]
+        checks.append(("HHT fixed step, negrut form: converges (observed orders from h <= 5e-4 %s; requirement "
+                       ">= 0.8; first order expected, docs/hht.md)" % fmt(v), len(v) >= 1 and min(v) >= 0.8))
+    h_fine = steps[-1]
+    e_fine = [c.error for h, c in series("modified", "equilibrium") + series("classical", "equilibrium")
+              if h == h_fine and c.status == "done"]
+    tol_fine = 1e-5 if not args.quick else 1e-4
+    checks.append(("HHT fixed step, equilibrium form, h = %.4g: errors %s m (tolerance %g)" % (
+        h_fine, ", ".join("%.1e" % e for e in e_fine), tol_fine), len(e_fine) == 2 and max(e_fine) <= tol_fine))
     ida_ratio = [c.error / float(c.setting.split("=")[-1]) for c in cases
                  if c.integrator == "ida" and c.status == "done"]
     checks.append(("IDA: error <= 1e3 rtol for every rtol (largest error/rtol %.0f)" % max(ida_ratio),
@@ -268,10 +286,11 @@ def main():
     md.append("## 4. Work-precision\n")
     md.append("Error = |r_cm(%g) - r_cm,ref(%g)| in m (the max over the output rows in the next column); CPU = "
               "the results file's `solver_cpu_time` (integrator only, without output). HHT alpha = %g; the "
-              "adaptive runs start at h = 1e-4. Observed orders of the fixed-step runs (per halving): modified %s; "
-              "classical %s. Data: `%s`.\n" % (T_END, T_END, ALPHA,
-                                              ", ".join("%.2f" % p for p in orders["modified"]),
-                                              ", ".join("%.2f" % p for p in orders["classical"]), csv_name))
+              "adaptive runs start at h = 1e-4. Data: `%s`.\n" % (T_END, T_END, ALPHA, csv_name))
+    md.append("Observed orders of the fixed-step runs, log2(e(h)/e(h/2)) from h = %.4g on:\n" % steps[0])
+    md.append(mr.markdown_table(["scheme", "form", "orders"],
+                                [[k[0], k[1], fmt([p for _, p in v])] for k, v in orders.items()]))
+    md.append("")
     md.append(mr.markdown_table(
         ["integrator", "setting", "CPU [s]", "error at t = 1 [m]", "max error [m]", "steps (rejected)"],
         [[c.integrator, c.setting, "%.4f" % c.cpu if c.cpu is not None else "-",
@@ -281,22 +300,24 @@ def main():
     md.append("")
 
     if not args.quick:
-        # the first order of HHT with alpha < 0 comes from the alpha-weighted mix of the
-        # configuration-dependent mass matrix (docs/hht.md): the error should scale with alpha
+        # the negrut residual's error is O(alpha h) with a configuration-dependent mass matrix
+        # (docs/hht.md); the equilibrium form's is O(h^2)
         md.append("### Error against alpha (HHT fixed step, modified scheme)\n")
         rows = []
-        for alpha in (-0.02, -0.1, -0.3):
-            errs = []
-            for h in (6.25e-5, 3.125e-5):
-                c = Case("hht-fixed", "h = %.4g, alpha = %g" % (h, alpha),
-                         ["--integrator", "hht", "--alpha", repr(alpha), "--step", repr(h), "--modified"])
-                run_case(runner, c, ref)
-                errs.append(c.error)
-                rows.append([alpha, "%.4g" % h, "%.3e" % c.error if c.error is not None else "failed: " + c.message,
-                             "%.0f" % (c.error / abs(alpha) / h) if c.error is not None else "-"])
-        md.append("The last column is error / (-alpha h) in m/s; a constant value means the error "
-                  "is proportional to alpha h.\n")
-        md.append(mr.markdown_table(["alpha", "h [s]", "error at t = 1 [m]", "error / (-alpha h) [m/s]"], rows))
+        for form in forms:
+            for alpha in (-0.02, -0.1, -0.3):
+                for h in (6.25e-5, 3.125e-5):
+                    c = Case("hht-fixed", "", ["--integrator", "hht", "--alpha", repr(alpha), "--step", repr(h),
+                                               "--modified", "--hht-form", form])
+                    run_case(runner, c, ref)
+                    ok_ = c.error is not None
+                    rows.append([form, alpha, "%.4g" % h, "%.3e" % c.error if ok_ else "failed: " + c.message,
+                                 "%.0f" % (c.error / abs(alpha) / h) if ok_ else "-",
+                                 "%.0f" % (c.error / h**2) if ok_ else "-"])
+        md.append("error / (-alpha h) is constant when the error is proportional to alpha h (negrut form); "
+                  "error / h^2 is constant for a second-order error.\n")
+        md.append(mr.markdown_table(["form", "alpha", "h [s]", "error at t = 1 [m]", "error / (-alpha h) [m/s]",
+                                     "error / h^2 [m/s^2]"], rows))
         md.append("")
 
     figures = []
@@ -305,46 +326,50 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4))
-        series = [("hht-fixed", "modified", "o-", "HHT fixed step, modified"),
-                  ("hht-fixed", "classical", "v-", "HHT fixed step, classical"),
-                  ("hht-adaptive", "", "^-", "HHT adaptive (tol 1e-3 ... 1e-9)"),
-                  ("ida", "", "s-", "IDA (rtol = atol = 1e-4 ... 1e-12)")]
-        for integ, key, style, label in series:
-            pts = sorted((c.cpu, c.error) for c in cases if c.integrator == integ and key in c.setting
-                         and c.status == "done")
+        styles = {("modified", "equilibrium"): "o-", ("classical", "equilibrium"): "v-",
+                  ("modified", "negrut"): "o--", ("classical", "negrut"): "v--"}
+        for (scheme, form), style in styles.items():
+            pts = sorted((c.cpu, c.error) for h, c in series(scheme, form) if c.status == "done")
+            if pts:
+                a1.loglog([p[0] for p in pts], [p[1] for p in pts], style, ms=4,
+                          label="HHT fixed, %s, %s form" % (scheme, form))
+        for integ, style, label in (("hht-adaptive", "^-", "HHT adaptive (tol 1e-3 ... 1e-9)"),
+                                    ("ida", "s-", "IDA (rtol = atol = 1e-4 ... 1e-12)")):
+            pts = sorted((c.cpu, c.error) for c in cases if c.integrator == integ and c.status == "done")
             a1.loglog([p[0] for p in pts], [p[1] for p in pts], style, label=label, ms=4)
         a1.set_xlabel("CPU time of the integrator [s]")
         a1.set_ylabel("|r_cm(1) - r_cm,ref(1)| [m]")
         a1.set_title("Heavy top: work-precision (alpha = %g)" % ALPHA)
         a1.grid(True, which="both", alpha=0.3)
-        a1.legend(fontsize=8)
-        for key, style in (("modified", "o-"), ("classical", "v-")):
-            pts = [(h, c.error) for h in steps for c in cases if c.setting == "h = %.4g, %s" % (h, key)
-                   and c.status == "done"]
-            a2.loglog([p[0] for p in pts], [p[1] for p in pts], style, label="HHT " + key, ms=4)
-        e_fine = min(c.error for c in cases if c.setting == "h = %.4g, modified" % steps[-1])
+        a1.legend(fontsize=7)
+        for (scheme, form), style in styles.items():
+            pts = [(h, c.error) for h, c in series(scheme, form) if c.status == "done"]
+            if pts:
+                a2.loglog([p[0] for p in pts], [p[1] for p in pts], style, ms=4, label="%s, %s" % (scheme, form))
+        e_ref = min(c.error for h, c in series("modified", "equilibrium") if h == steps[-1] and c.status == "done")
         hs = np.array([h for h in steps if h <= 2.5e-4])
-        a2.loglog(hs, 0.3 * e_fine * hs / hs[-1], "k:", label="slope 1")
-        a2.loglog(hs, 0.3 * e_fine * (hs / hs[-1])**2, "k--", label="slope 2")
+        a2.loglog(hs, 3 * e_ref * hs / hs[-1], "k:", label="slope 1")
+        a2.loglog(hs, 0.3 * e_ref * (hs / hs[-1])**2, "k-.", label="slope 2")
         a2.set_xlabel("step h [s]")
         a2.set_ylabel("error at t = 1 [m]")
         a2.set_title("HHT fixed step: convergence")
         a2.grid(True, which="both", alpha=0.3)
-        a2.legend(fontsize=8)
+        a2.legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(os.path.join(OUT, "work_precision.png"), dpi=100)
         figures.append("work_precision.png")
 
-    best = min((c for c in cases if c.status == "done" and c.integrator == "hht-fixed"), key=lambda c: c.error)
+    eq_orders = [p for h, p in orders[("modified", "equilibrium")] if h <= 5e-4]
+    ng_orders = [p for h, p in orders.get(("modified", "negrut"), []) if h <= 5e-4]
     summary = {
         "title": "Heavy top (Arnold & Bruls 2007; Bruls & Cardona 2010)",
-        "headline": "t = 0 angular acceleration matches the published 661.3461692307692 to %.0e; IDA 1e-12 "
-                    "within %.1e m of an independent DOP853 reference; HHT (alpha = %g) converges with order "
-                    "about %.1f, modified scheme %.0f-%.0fx more accurate than classical (best %.1e m at %s)"
+        "headline": "t = 0 angular acceleration matches the published 661.3461692307692 (relative difference "
+                    "%.0e); IDA 1e-12 within %.1e m of an independent DOP853 reference; fixed-step HHT (alpha = %g), "
+                    "equilibrium form: order %s, %.1e m at h = %.4g (modified), negrut form: order %s"
                     % (acc_err, tight.max_error if tight.max_error is not None else float("nan"), ALPHA,
-                       float(np.median(orders["modified"])) if orders["modified"] else float("nan"),
-                       min(ratios) if ratios else float("nan"), max(ratios) if ratios else float("nan"),
-                       best.error, best.setting),
+                       "%.2f" % float(np.median(eq_orders)) if eq_orders else "-",
+                       e_fine[0] if e_fine else float("nan"), h_fine,
+                       "%.2f" % float(np.median(ng_orders)) if ng_orders else "not run"),
         "figures": figures,
         "csv": [csv_name],
         "work_precision": csv_name,
