@@ -9,11 +9,18 @@
     log2(err(h) / err(h/2)) of the max relative angle error at t = 0.03; requirement:
     every observed order within 2 +- 0.3.
 (c) Work-precision: HHT (fixed steps 4e-5 ... 6.25e-7) and IDA (rtol = atol = 1e-3 ...
-    1e-10 in half decades): max relative angle error at t = 0.03 against the wall time of
-    the run (the results file's wall_time attribute). Writes work_precision.csv,
-    work_precision.png and the tables in results.md (this folder).
+    1e-10 in half decades): max relative angle error at t = 0.03 against the CPU time in
+    the integrator (the results file's solver_cpu_time). Writes work_precision.csv
+    (columns problem,integrator,setting,cpu_time,error,steps,status), work_precision.png
+    and the tables in results.md.
+(d) IFToMM A03 (Gonzalez et al. 2006): beta over 0.03 s (output every 1e-4 s) against
+    IDA at rtol = atol = 1e-12, which is checked against the test set's value at 0.03
+    (scd >= 9). Error: max_t |beta - beta_ref| / max(max_t |beta_ref|, 1e-3). HHT
+    (alpha = -0.1, h = 1e-5) and IDA (rtol = atol = 1e-5): error <= 1e-3. Rows in
+    summary.json ("iftomm").
 
-Exits 1 if a requirement fails. --quick skips (c).
+Tables and figures go to this folder or $MBDAE_VERIFICATION_OUT (results.md,
+summary.json). Exits 1 if a requirement fails. --quick skips (c).
 """
 import argparse
 import csv
@@ -58,12 +65,51 @@ def run_case(runner, args, name):
     rel = np.abs(q_end - ad.Q_REF) / np.abs(ad.Q_REF)
     out.update(q_end=q_end, q_start=q_start, rel=rel, err=float(np.max(rel)),
                scd=-math.log10(max(float(np.max(rel)), 1e-300)))
-    try:
-        out["wall"] = r.wall_time()
-    except mr.RunError:
-        out["wall"] = None
+    out["cpu"] = r.cpu_time()
+    out["steps"] = int(r.attrs["steps_accepted"])
     out["attrs"] = r.attrs
     return out
+
+
+IFTOMM_TOL, IFTOMM_THRESHOLD = 1e-3, 1e-3
+IFTOMM_COMMON = ["--t-end", "0.03", "--output-step", "1e-4"]
+IFTOMM_SETTINGS = [("hht-fixed", "alpha = -0.1, h = 1e-5", ["--integrator", "hht", "--alpha", "-0.1", "--fixed-step",
+                                                            "--step", "1e-5"]),
+                   ("ida", "rtol = atol = 1e-5", ["--integrator", "ida", "--rtol", "1e-5", "--atol", "1e-5"])]
+
+
+def part_d(runner, md, checks):
+    """IFToMM A03: beta over 0.03 s against IDA 1e-12 (checked by the test set's value)."""
+    path, _ = runner.simulate(MODEL, ["--integrator", "ida", "--rtol", "1e-12", "--atol", "1e-12"] + IFTOMM_COMMON,
+                              "a03ref")
+    ref = mr.Results(path)
+    q_end = np.array([ref.at("/measures/" + n, ad.T_REF) for n in ad.NAMES])
+    scd_ref = -math.log10(float(np.max(np.abs(q_end - ad.Q_REF) / np.abs(ad.Q_REF))))
+    checks.append(("A03 reference: IDA at rtol = atol = 1e-12 against the test set's angles at t = 0.03, "
+                   "scd = %.2f >= 9" % scd_ref, scd_ref >= 9.0))
+    beta_ref = ref["/measures/beta"]
+    rows = []
+    for integ, setting, args in IFTOMM_SETTINGS:
+        path, _ = runner.simulate(MODEL, args + IFTOMM_COMMON, "a03")
+        r = mr.Results(path)
+        if len(r.time) != len(ref.time) or np.max(np.abs(r.time - ref.time)) > 1e-12:
+            raise mr.RunError("A03: output times differ from the reference's")
+        err = float(np.max(np.abs(r["/measures/beta"] - beta_ref))) / max(float(np.max(np.abs(beta_ref))),
+                                                                         IFTOMM_THRESHOLD)
+        passed = err <= IFTOMM_TOL
+        rows.append({"problem": "A03", "integrator": integ, "setting": setting, "quantity": "beta",
+                     "error": err, "tolerance": IFTOMM_TOL, "cpu_time": r.cpu_time(), "passed": bool(passed)})
+        print("(d) A03 %-9s %-22s error %.3e (tolerance 1e-3) CPU %.3f s" % (integ, setting, err, r.cpu_time()))
+        checks.append(("IFToMM A03, %s (%s): error of beta over 0.03 s = %.2e <= 1e-3" % (integ, setting, err),
+                       passed))
+    md.append("\n## (d) IFToMM A03: beta over 0.03 s\n")
+    md.append("Reference: IDA at rtol = atol = 1e-12, output every 1e-4 s; at t = 0.03 it agrees with the test set's "
+              "PSIDE values to scd = %.2f. Error: max_t |beta - beta_ref| / max(max_t |beta_ref|, 1e-3) "
+              "(max |beta_ref| = %.4f rad). CPU: solver_cpu_time.\n" % (scd_ref, float(np.max(np.abs(beta_ref)))))
+    md.append(mr.markdown_table(["integrator", "setting", "error", "tolerance", "CPU [s]", "passed"],
+                                [[r["integrator"], r["setting"], "%.3e" % r["error"], "1e-3", "%.4f" % r["cpu_time"],
+                                  "yes" if r["passed"] else "NO"] for r in rows]))
+    return rows
 
 
 def part_a(a, md):
@@ -87,7 +133,7 @@ def part_a(a, md):
     md.append("\nscd = -log10(max relative error) = %.2f; requirement >= 7: **%s**\n" % (
         a["scd"], "PASS" if pass_a else "FAIL"))
 
-    return pass_start and pass_a
+    return pass_start, pass_a
 
 
 def main():
@@ -96,7 +142,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="skip the work-precision sweep (c)")
     args = ap.parse_args()
     runner = mr.Runner(mr.find_mbdae(args.mbdae), args.keep)
-    ok = True
+    checks = []
     md = ["# Andrews' squeezer: verification results\n",
           "Produced by `verification/andrews/run.py`; model `verification/andrews/andrews.yaml`; "
           "reference: Test Set for IVP Solvers (andrews.f), PSIDE at rtol = atol = 1e-14, t = 0.03.\n"]
@@ -104,7 +150,7 @@ def main():
     # (a)
     a = run_case(runner, ["--integrator", "ida", "--rtol", "1e-10", "--atol", "1e-10"], "ida")
     if "error" in a:
-        ok = False
+        checks.append(("(a) IDA run at rtol = atol = 1e-10 ends: %s" % a["error"], False))
         print("FAIL (a): IDA run failed:", a["error"])
         md.append("## (a) IDA, rtol = atol = 1e-10\n")
         md.append("The run failed: `%s`. **FAIL**\n" % a["error"])
@@ -115,7 +161,9 @@ def main():
                       "angles: max difference %.2e rad (requirement <= 1e-12: **%s**).\n" % (
                           start_err, "PASS" if start_err <= 1e-12 else "FAIL"))
     else:
-        ok &= part_a(a, md)
+        start_ok, scd_ok = part_a(a, md)
+        checks.append(("(a) measures at t = 0 equal the consistent initial angles to 1e-12", start_ok))
+        checks.append(("(a) IDA 1e-10: scd = %.2f >= 7" % a["scd"], scd_ok))
 
     # (b)
     steps_b = [1e-5 / 2**i for i in range(5)]
@@ -138,12 +186,14 @@ def main():
         rows.append(["%.4g" % h, "%.3e" % c["err"], order])
         print("(b) HHT h = %-9.4g max rel err %s  order %s" % (h, rows[-1][1], order))
     pass_b = len(orders) == len(steps_b) - 1 and all(abs(p - 2.0) <= 0.3 for p in orders)
-    ok &= pass_b
+    checks.append(("(b) HHT alpha = -0.1: every observed order within 2 +- 0.3 (%s)" % ", ".join(
+        "%.3f" % p for p in orders), pass_b))
     md.append("\n## (b) HHT order, alpha = -0.1, fixed steps\n")
     md.append(mr.markdown_table(["h [s]", "max relative angle error, t = 0.03", "observed order"], rows))
     md.append("\nRequirement: every observed order within 2 +- 0.3: **%s**\n" % ("PASS" if pass_b else "FAIL"))
 
     # (c)
+    figures = []
     if not args.quick:
         for h in [4e-5, 2e-5]:
             hht[h] = run_case(runner, ["--integrator", "hht", "--alpha", "-0.1", "--step", repr(h)], "hht")
@@ -162,20 +212,20 @@ def main():
             table.append(("ida", "rtol = atol = %.3g" % tol, ida[tol]))
         with open(os.path.join(OUT, "work_precision.csv"), "w", newline="") as f:
             wcsv = csv.writer(f)
-            wcsv.writerow(["integrator", "setting", "wall_time_s", "process_time_s", "max_rel_error", "scd", "status"])
+            wcsv.writerow(["problem", "integrator", "setting", "cpu_time", "error", "steps", "status"])
             for integ, setting, c in table:
-                wcsv.writerow([integ, setting, "%.6g" % c["wall"] if c.get("wall") is not None else "",
-                               "%.6g" % c["elapsed"], "%.6e" % c["err"] if "err" in c else "",
-                               "%.3f" % c["scd"] if "scd" in c else "", c.get("error", "done")])
+                wcsv.writerow(["andrews", "hht-fixed" if integ == "hht" else "ida", setting,
+                               "%.6g" % c["cpu"] if "cpu" in c else "", "%.6e" % c["err"] if "err" in c else "",
+                               c.get("steps", ""), "failed" if "error" in c else "done"])
         md.append("\n## (c) Work-precision at t = 0.03\n")
-        md.append("Wall time: the results file's `wall_time` attribute (the process time measured "
-                  "by the script in parentheses). Data: `work_precision.csv`; plot: `work_precision.png`.\n")
+        md.append("Cost: the results file's `solver_cpu_time` (process CPU seconds in the integrator, without "
+                  "output). Error: max relative error of the 7 angles. Data: `work_precision.csv`; plot: "
+                  "`work_precision.png`.\n")
         md.append(mr.markdown_table(
-            ["integrator", "setting", "wall time [s]", "max relative error", "scd"],
-            [[integ, setting,
-              ("%.4f" % c["wall"] if c.get("wall") is not None else "-") + " (%.3f)" % c["elapsed"],
+            ["integrator", "setting", "CPU [s]", "max relative error", "scd", "steps"],
+            [[integ, setting, "%.4f" % c["cpu"] if "cpu" in c else "-",
               "%.3e" % c["err"] if "err" in c else "failed: " + c.get("error", ""),
-              "%.2f" % c["scd"] if "scd" in c else ""] for integ, setting, c in table]))
+              "%.2f" % c["scd"] if "scd" in c else "", c.get("steps", "")] for integ, setting, c in table]))
         try:
             import matplotlib
             matplotlib.use("Agg")
@@ -183,26 +233,33 @@ def main():
             fig, ax = plt.subplots(figsize=(6.4, 4.8))
             for integ, style, label in (("hht", "o-", "HHT, alpha = -0.1 (fixed steps)"),
                                         ("ida", "s-", "IDA (rtol = atol = 1e-3 ... 1e-10)")):
-                pts = [(c["wall"] if c.get("wall") is not None else c["elapsed"], c["err"])
-                       for i, _, c in table if i == integ and "err" in c]
+                pts = sorted((c["cpu"], c["err"]) for i, _, c in table if i == integ and "err" in c)
                 if pts:
-                    pts.sort()
                     ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, label=label)
-            ax.set_xlabel("wall time [s]")
+            ax.set_xlabel("CPU time in the integrator [s]")
             ax.set_ylabel("max relative error of the 7 angles at t = 0.03")
             ax.set_title("Andrews' squeezer: work-precision")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend()
             fig.tight_layout()
-            fig.savefig(os.path.join(OUT, "work_precision.png"), dpi=120)
+            fig.savefig(os.path.join(OUT, "work_precision.png"), dpi=100)
+            figures.append("work_precision.png")
         except Exception as exc:  # the plot is a by-product; the numbers are in the CSV
             print("plot not written:", exc)
 
-    with open(os.path.join(OUT, "results.md"), "w") as f:
-        f.write("\n".join(md))
-    runner.cleanup()
-    print("andrews:", "PASS" if ok else "FAIL")
-    return 0 if ok else 1
+    # (d)
+    iftomm = part_d(runner, md, checks)
+    md.append("")
+    summary = {"title": "Andrews' squeezer (IFToMM A03, Test Set for IVP Solvers)",
+               "headline": "IDA 1e-10: scd %s; HHT order %s; IFToMM A03 beta errors: %s" % (
+                   "%.2f" % a["scd"] if "scd" in a else "failed",
+                   ", ".join("%.2f" % p for p in orders),
+                   ", ".join("%s %.1e (CPU %.3f s)" % (r["integrator"], r["error"], r["cpu_time"]) for r in iftomm)),
+               "figures": figures, "csv": ["work_precision.csv"] if not args.quick else [],
+               "iftomm": iftomm}
+    if not args.quick:
+        summary["work_precision"] = "work_precision.csv"
+    return mr.finish_checks(runner, checks, md, OUT, summary)
 
 
 if __name__ == "__main__":
