@@ -190,6 +190,7 @@ class HhtIntegrator final : public Integrator {
     summary_ = Summary();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
+    h_prev_ = 0;
     h_ = opt_.step;
     if (opt_.max_step > 0) h_ = std::min(h_, opt_.max_step);
     jacobian_fresh_ = false;
@@ -325,13 +326,18 @@ class HhtIntegrator final : public Integrator {
   void Kinematics(double h) {
     const std::vector<double>& q0 = state_.q;
     const std::vector<double>& v0 = state_.v;
-    const std::vector<double>& a0 = equilibrium_ ? abar_ : state_.a;
     for (int i = 0; i < nq_; ++i)
       abar_new_[i] = equilibrium_ ? (1 + alpha_) * an_[i] - alpha_ * state_.a[i] : an_[i];
     const std::vector<double>& a1 = abar_new_;
+    // abar_n - a_n = -alpha (a_n - a_{n-1}) is proportional to the step that made it; a
+    // step of another size needs it scaled by h / h_prev, or every change of the step
+    // (to land on an output time, or by the step-size control) costs an O(h^2) local
+    // error and the method drops to first order.
+    const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
     for (int i = 0; i < nq_; ++i) {
-      qn_[i] = q0[i] + h * v0[i] + h * h * ((0.5 - beta_) * a0[i] + beta_ * a1[i]);
-      vn_[i] = v0[i] + h * ((1 - gamma_) * a0[i] + gamma_ * a1[i]);
+      const double a0 = equilibrium_ ? state_.a[i] + r * (abar_[i] - state_.a[i]) : state_.a[i];
+      qn_[i] = q0[i] + h * v0[i] + h * h * ((0.5 - beta_) * a0 + beta_ * a1[i]);
+      vn_[i] = v0[i] + h * ((1 - gamma_) * a0 + gamma_ * a1[i]);
     }
     if (!opt_.modified) return;
     const std::vector<int>& groups = sys_.quaternion_offsets();
@@ -348,11 +354,11 @@ class HhtIntegrator final : public Integrator {
         double dwn[3];
         Gx(e0, &state_.a[g], dwn);
         for (int k = 0; k < 3; ++k) {
-          dw0[k] = wbar_[3 * grp + k];
+          dw0[k] = 2 * dwn[k] + r * (wbar_[3 * grp + k] - 2 * dwn[k]);
           dw1[k] = 2 * ((1 + alpha_) * dw1[k] - alpha_ * dwn[k]);
         }
       } else {
-        Gx(e0, &a0[g], dw0);
+        Gx(e0, &state_.a[g], dw0);
         for (int k = 0; k < 3; ++k) {
           dw0[k] *= 2;
           dw1[k] *= 2;
@@ -613,6 +619,7 @@ class HhtIntegrator final : public Integrator {
     ++steps_with_jacobian_;
     summary_.t_reached = t1;
     summary_.h_last = h;
+    h_prev_ = h;
   }
 
   MechanicalSystem& sys_;
@@ -636,6 +643,7 @@ class HhtIntegrator final : public Integrator {
   Summary summary_;
   std::string message_;
   double h_ = 0;
+  double h_prev_ = 0;  // the last accepted step (0 before the first)
   double jacobian_h_ = 0;
   bool jacobian_valid_ = false, jacobian_fresh_ = false, initialized_ = false;
   int steps_with_jacobian_ = 0;
