@@ -279,8 +279,9 @@ def main():
             styles = {"hht-fixed": "o", "hht-adaptive": "s", "ida": "^"}
             for integ in ("hht-fixed", "hht-adaptive", "ida"):
                 for alpha, fill in (("-0.3", "full"), ("-0.1", "none")):
-                    pts = sorted((c["cpu"], c["error"]) for c in results if c["integrator"] == integ and
-                                 c["status"] == "done" and (integ == "ida" or c["setting"].endswith("alpha = " + alpha)))
+                    pts = sorted(((c["cpu"], c["error"]) for c in results if c["integrator"] == integ and
+                                 c["status"] == "done" and (integ == "ida" or c["setting"].endswith("alpha = " + alpha))),
+                                 key=lambda p: -p[1])   # joined from the loosest setting to the tightest
                     if pts and not (integ == "ida" and alpha == "-0.1"):
                         ax.loglog([p[0] for p in pts], [p[1] for p in pts], styles[integ] + "-", fillstyle=fill,
                                   label=integ + ("" if integ == "ida" else ", alpha = " + alpha))
