@@ -47,6 +47,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
@@ -69,6 +70,7 @@ bool HhtOptions::IsValid(std::string* error) const {
   if (adaptive && !(tolerance > 0)) return fail("tolerance must be positive");
   if (!(newton_tolerance > 0)) return fail("newton_tolerance must be positive");
   if (max_newton_iterations < 1) return fail("max_newton_iterations must be >= 1");
+  if (max_steps_per_call < 0) return fail("max_steps_per_call must be >= 0 (0: no limit)");
   if (!(newton_noise_factor >= 1)) return fail("newton_noise_factor must be >= 1");
   if (!(jacobian_reuse_rate > 0 && jacobian_reuse_rate < 1))
     return fail("jacobian_reuse_rate must be in (0, 1)");
@@ -92,6 +94,13 @@ bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {
 }
 
 namespace {
+
+// A number for messages: %.6g (std::to_string prints 1e-12 as 0.000000).
+std::string Num(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
 
 // Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'.
 // Gx(e, x) = G(e) x (x: 4), Gt(e, y) = G(e)^T y (y: 3). Both bilinear.
@@ -227,13 +236,24 @@ class HhtIntegrator final : public Integrator {
     if (!(t_target > state_.t)) {
       if (t_target == state_.t) return true;
       summary_.status = Summary::Status::kFailed;
-      summary_.message = "AdvanceTo: target " + std::to_string(t_target) +
-                         " is before the current time " + std::to_string(state_.t);
+      summary_.message = "AdvanceTo: target " + Num(t_target) + " is before the current time " +
+                         Num(state_.t);
       return false;
     }
     summary_.status = Summary::Status::kRunning;
     const double h_nominal_fixed = opt_.max_step > 0 ? std::min(opt_.step, opt_.max_step) : opt_.step;
+    // Step budget of this call (max_steps_per_call, plus the steps the nominal step needs).
+    const double budget = opt_.max_steps_per_call > 0
+                              ? opt_.max_steps_per_call + (t_target - state_.t) / h_nominal_fixed
+                              : std::numeric_limits<double>::infinity();
+    double attempts = 0;
     while (state_.t < t_target) {
+      if (++attempts > budget)
+        return Fail("more than " + Num(budget) + " step attempts between t = " + Num(state_.t) +
+                    " and the next output time " + Num(t_target) + " (step size now " + Num(h_) +
+                    "): the step size collapsed; the multipliers or forces may be growing "
+                    "without bound (HHT with alpha = 0 on constrained systems, a singular "
+                    "configuration), or the problem needs a smaller tolerance or output step");
       const double remaining = t_target - state_.t;
       double h = h_;
       bool last = false;
@@ -250,8 +270,8 @@ class HhtIntegrator final : public Integrator {
         ++summary_.steps_rejected;
         h_ = h / 2;
         if (h_ < opt_.min_step)
-          return Fail("Newton iteration failed at t = " + std::to_string(state_.t) +
-                      " with the step reduced below min_step = " + std::to_string(opt_.min_step) +
+          return Fail("Newton iteration failed at t = " + Num(state_.t) +
+                      " with the step reduced below min_step = " + Num(opt_.min_step) +
                       (message_.empty() ? "" : " (" + message_ + ")"));
         continue;
       }
@@ -266,8 +286,8 @@ class HhtIntegrator final : public Integrator {
           ++summary_.steps_rejected;
           h_ = h * std::min(factor, 0.9);
           if (h_ < opt_.min_step)
-            return Fail("error test failed at t = " + std::to_string(state_.t) +
-                        " with the step at min_step = " + std::to_string(opt_.min_step));
+            return Fail("error test failed at t = " + Num(state_.t) +
+                        " with the step at min_step = " + Num(opt_.min_step));
           continue;
         }
         h_next = h * factor;

@@ -45,6 +45,10 @@ struct HhtOptions {
   // linear solve and is accepted as converged (counted in Summary::newton_noise_stops).
   double newton_noise_factor = 1e4;
   int max_newton_iterations = 10;
+  // One AdvanceTo call fails (with a message) after this many step attempts beyond the
+  // number the nominal step needs to reach its target: the step size has collapsed
+  // (as SUNDIALS' mxstep). 0: no limit.
+  int max_steps_per_call = 100000;
   // Reuse the factorised Newton matrix across iterations and steps while the
   // convergence rate stays below this value.
   double jacobian_reuse_rate = 0.2;

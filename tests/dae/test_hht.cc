@@ -423,6 +423,31 @@ TEST(Hht, ImpossibleConstraintFailsWithAMessage) {
   EXPECT_NE(s.BriefReport().find("FAILED"), std::string::npos);
 }
 
+// A collapsing step size ends the call with a message instead of crawling on: here a
+// tolerance no step above 1e-5 can meet, with a budget of 5 attempts beyond the 1000 the
+// nominal step needs.
+TEST(Hht, StepBudgetStopsACollapsedStepWithAMessage) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.step = 1e-3;
+  opt.adaptive = true;
+  opt.tolerance = 1e-13;
+  opt.max_steps_per_call = 5;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  EXPECT_FALSE(integ->AdvanceTo(1.0));
+  EXPECT_EQ(integ->summary().status, Summary::Status::kFailed);
+  EXPECT_NE(integ->summary().message.find("1005 step attempts"), std::string::npos)
+      << integ->summary().message;
+  EXPECT_LT(integ->summary().t_reached, 1.0);
+  // The same run without the budget's limit is not stopped by it.
+  opt.max_steps_per_call = 0;
+  opt.tolerance = 1e-8;
+  auto ok = MakeHhtIntegrator(sys, opt);
+  ok->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  EXPECT_TRUE(ok->AdvanceTo(1.0)) << ok->summary().message;
+}
+
 TEST(Hht, InvalidOptionsAreRejected) {
   PendulumSystem sys(1.0, 1.0, 9.81);
   HhtOptions opt;
