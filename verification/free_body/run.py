@@ -5,8 +5,9 @@ artificial damping of HHT with Euler parameters, modified against classical sche
 Exact: omega_z(t) = M t / Jzz = t / 3 rad/s. Runs HHT with h = 0.01 over 10 s for
 alpha = 0, -0.1, -0.3, modified (the default) and classical (`--no-modified`), and
 compares omega_z(10) from /bodies/box/angular_velocity with 10/3.
-Requirements: alpha = 0, modified: relative error <= 1e-9; alpha = -0.1 and -0.3: the
-modified scheme's error below half the classical one.
+Requirements: modified scheme, every alpha: relative error <= 1e-9 (the default,
+equilibrium form keeps the modified spin-up exact with numerical damping, docs/hht.md);
+classical scheme: error > 1e-5 (the artificial damping the paper describes).
 Writes verification/free_body/results.md; exits 1 if a requirement fails.
 """
 import argparse
@@ -62,15 +63,14 @@ def main():
             err[(alpha, scheme)] = e
             print("alpha = %5.2f %-9s omega(10) = %.15f  relative error %.3e  (|omega_x|, |omega_y| = %.1e, %.1e)"
                   % (alpha, scheme, w[2], e, abs(w[0]), abs(w[1])))
-    ok = True
     checks = []
-    c0 = err[(0.0, "modified")] <= 1e-9
-    checks.append(("alpha = 0, modified: relative error <= 1e-9", c0))
-    ok &= c0
-    for alpha in (-0.1, -0.3):
-        c = err[(alpha, "modified")] < 0.5 * err[(alpha, "classical")]
-        checks.append(("alpha = %g: modified error < classical / 2" % alpha, c))
-        ok &= c
+    # The default (equilibrium) form keeps the modified spin-up exact for every alpha
+    # (docs/hht.md); the classical scheme spins up too slowly.
+    for alpha in (0.0, -0.1, -0.3):
+        checks.append(("alpha = %g, modified: relative error %.1e <= 1e-9"
+                       % (alpha, err[(alpha, "modified")]), err[(alpha, "modified")] <= 1e-9))
+        checks.append(("alpha = %g: classical error %.1e > 1e-5 (artificial damping of the spin-up)"
+                       % (alpha, err[(alpha, "classical")]), err[(alpha, "classical")] > 1e-5))
     for alpha in (0.0, -0.1, -0.3):
         rows.append(["%g" % alpha, "%.3e" % err[(alpha, "modified")], "%.3e" % err[(alpha, "classical")],
                      "%.3g" % (err[(alpha, "modified")] / err[(alpha, "classical")])
@@ -81,13 +81,11 @@ def main():
           "Exact omega_z(10) = M t / Jzz = %.15f rad/s.\n" % exact,
           "Relative error of omega_z(10) (from `/bodies/box/angular_velocity`):\n",
           mr.markdown_table(["alpha", "modified HHT", "classical HHT", "modified / classical"], rows), ""]
-    for text, c in checks:
-        md.append("- %s: **%s**" % (text, "PASS" if c else "FAIL"))
-    with open(os.path.join(OUT, "results.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
-    runner.cleanup()
-    print("free body:", "PASS" if ok else "FAIL")
-    return 0 if ok else 1
+    summary = {"title": "Free body under a constant moment (modified vs classical HHT)",
+               "headline": "relative omega error at t = 10 s, modified / classical: " + "; ".join(
+                   "alpha = %g: %.1e / %.1e" % (a, err[(a, "modified")], err[(a, "classical")])
+                   for a in (0.0, -0.1, -0.3))}
+    return mr.finish_checks(runner, checks, md, OUT, summary)
 
 
 if __name__ == "__main__":
