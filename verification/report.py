@@ -1,16 +1,16 @@
 #!/usr/bin/env python3
 """Builds the verification report: runs every verification study and paper reproduction
 in its full form, one after another (so the CPU times of the work-precision studies are
-measured without competition), and writes
+measured without competition). Each script refreshes the outputs in its own folder
+(results.md, figures as PNG, data as CSV, summary.json), and the report
 
-    OUT/report.md            the report (Markdown)
-    OUT/<item>/...           each item's results.md, figures (PNG), data (CSV), summary.json
+    verification/REPORT.md   links to them (the committed report), or, with --out DIR,
+    DIR/report.md            a self-contained copy: DIR/<item>/ holds each item's files.
 
-Default OUT: verification/report. Each script also refreshes the outputs committed in its
-own folder (results.md, figures, CSV). Exit status: the number of items with a failed
-check or a failed run (0: everything passed).
+Exit status: the number of items with a failed check or a failed run (0: all passed).
 
 Usage: python3 verification/report.py [--mbdae build/mbdae] [--out DIR] [--only NAME ...]
+(--only reruns the named items; the others keep the outputs of the last full build.)
 """
 import argparse
 import csv
@@ -52,10 +52,18 @@ ITEMS = [
     ("Published results", "negrut2007-hht", "papers/negrut2007-hht/run.py", []),
     ("Published results", "andrews-testset", "papers/andrews-testset/run.py", []),
 ]
-ERROR_LEVELS = [1e-2, 1e-4, 1e-6, 1e-8]
+ERROR_LEVELS = [1e-2, 1e-3, 1e-4, 1e-6, 1e-8]
 
 
-def run_item(item, mbdae, library, out_root, python):
+def item_dir(item, out_root, copy):
+    """(folder holding the item's outputs, its path relative to the report)."""
+    if copy:
+        return os.path.join(out_root, item[1]), item[1]
+    folder = os.path.dirname(os.path.join(REPO, item[2]))
+    return folder, os.path.relpath(folder, out_root)
+
+
+def run_item(item, mbdae, library, out_root, python, copy):
     section, name, script, extra = item
     folder = os.path.dirname(os.path.join(REPO, script))
     args = [python, os.path.join(REPO, script), "--mbdae", mbdae]
@@ -66,20 +74,24 @@ def run_item(item, mbdae, library, out_root, python):
     proc = subprocess.run(args, cwd=REPO, env=env, stdout=subprocess.PIPE,
                           stderr=subprocess.STDOUT, text=True)
     seconds = time.time() - start
-    dest = os.path.join(out_root, name)
-    os.makedirs(dest, exist_ok=True)
-    with open(os.path.join(dest, "log.txt"), "w") as f:
-        f.write(proc.stdout)
+    dest, _ = item_dir(item, out_root, copy)
+    if copy:
+        os.makedirs(dest, exist_ok=True)
+        with open(os.path.join(dest, "log.txt"), "w") as f:
+            f.write(proc.stdout)
+    if proc.returncode != 0:
+        print("\n" + "\n".join(proc.stdout.splitlines()[-15:]))
     summary = {}
     path = os.path.join(folder, "summary.json")
     if os.path.isfile(path) and os.path.getmtime(path) >= start - 1:
         with open(path) as f:
             summary = json.load(f)
-    for f in ["results.md", "summary.json"] + summary.get("figures", []) + summary.get("csv", []):
-        src = os.path.join(folder, f)
-        if os.path.isfile(src):
-            shutil.copy(src, os.path.join(dest, f))
-    return {"section": section, "name": name, "script": script, "rc": proc.returncode,
+    if copy:
+        for f in ["results.md", "summary.json"] + summary.get("figures", []) + summary.get("csv", []):
+            src = os.path.join(folder, f)
+            if os.path.isfile(src):
+                shutil.copy(src, os.path.join(dest, f))
+    return {"item": item, "section": section, "name": name, "script": script, "rc": proc.returncode,
             "seconds": seconds, "summary": summary, "log": proc.stdout}
 
 
@@ -97,16 +109,16 @@ def read_wp(path):
     return rows
 
 
-def winners_table(results, out_root):
+def winners_table(results, out_root, copy):
     """For each work-precision study and error level: the cheapest run (CPU time) of each
     integrator kind that reaches the level, and the winner."""
     lines = ["| problem | error <= | " + " | ".join(["hht-fixed", "hht-adaptive", "ida"])
              + " | fastest |", "|---|---|---|---|---|---|"]
     for res in results:
         wp = res["summary"].get("work_precision")
-        if not wp:
+        if not wp or res["section"] == "Published results":  # the studies only, once each
             continue
-        path = os.path.join(out_root, res["name"], wp)
+        path = os.path.join(item_dir(res["item"], out_root, copy)[0], wp)
         if not os.path.isfile(path):
             continue
         rows = read_wp(path)
@@ -174,38 +186,52 @@ def main():
     parser.add_argument("--library", default=None,
                         help="the example user-force library (default: next to the program, "
                              "examples/user_force/libmbdae_spring_damper.so)")
-    parser.add_argument("--out", default=os.path.join(HERE, "report"), help="report folder")
+    parser.add_argument("--out", default=None,
+                        help="write a self-contained copy of the report into this folder "
+                             "(default: verification/REPORT.md, linking to the items' folders)")
     parser.add_argument("--only", nargs="*", default=None, help="run only these items")
     args = parser.parse_args()
     mbdae = mr.find_mbdae(args.mbdae)
     library = args.library or os.path.join(os.path.dirname(mbdae), "examples", "user_force",
                                            "libmbdae_spring_damper.so")
     python = sys.executable
-    out_root = os.path.abspath(args.out)
+    copy = args.out is not None
+    out_root = os.path.abspath(args.out) if copy else HERE
     os.makedirs(out_root, exist_ok=True)
-    items = [i for i in ITEMS if args.only is None or i[1] in args.only]
+    report_path = os.path.join(out_root, "report.md" if copy else "REPORT.md")
     results = []
     t0 = time.time()
-    for item in items:
+    for item in ITEMS:
+        if args.only is not None and item[1] not in args.only:
+            # Not rerun: the item's outputs of an earlier build of the report, if any.
+            prev = os.path.join(item_dir(item, out_root, copy)[0], "summary.json")
+            if os.path.isfile(prev):
+                with open(prev) as f:
+                    summary = json.load(f)
+                results.append({"item": item, "section": item[0], "name": item[1], "script": item[2], "rc": 0,
+                                "seconds": 0, "summary": summary, "log": "(not rerun)"})
+            continue
         if not os.path.isfile(os.path.join(REPO, item[2])):
             print("%-26s missing (%s)" % (item[1], item[2]))
-            results.append({"section": item[0], "name": item[1], "script": item[2], "rc": -1,
+            results.append({"item": item, "section": item[0], "name": item[1], "script": item[2], "rc": -1,
                             "seconds": 0, "summary": {}, "log": "script missing"})
             continue
         print("%-26s ..." % item[1], end="", flush=True)
-        res = run_item(item, mbdae, library, out_root, python)
+        res = run_item(item, mbdae, library, out_root, python, copy)
         checks = res["summary"].get("checks", [])
         passed = sum(1 for c in checks if c["passed"])
         print(" exit %d, checks %d/%d, %.0f s" % (res["rc"], passed, len(checks), res["seconds"]))
         results.append(res)
     total = time.time() - t0
 
+    rerun = "all items" if args.only is None else "the items " + ", ".join(args.only) + \
+        " (the others from the last full build)"
     md = ["# mbdae verification report\n",
-          "Built by `python3 verification/report.py` on %s in %.1f minutes (wall time, all "
-          "items one after another). CPU times are the program's `solver_cpu_time`: seconds in "
+          "Built by `python3 verification/report.py` on %s: %s, in %.1f minutes (wall time, "
+          "one after another). CPU times are the program's `solver_cpu_time`: seconds in "
           "the integrator, without output; they come from one run on one machine and are "
           "comparable within this report only.\n" % (
-              datetime.date.today().isoformat(), total / 60)]
+              datetime.date.today().isoformat(), rerun, total / 60)]
     failed = 0
     md.append("## Summary\n")
     md.append("| section | item | checks passed | result | time [s] |\n|---|---|---|---|---|")
@@ -231,7 +257,7 @@ def main():
     md.append("For each work-precision study and error level, the least CPU time of each "
               "integrator among the runs of its sweep that reach the level (setting in brackets), "
               "and the fastest. The figures are in the items' sections.\n")
-    md.append(winners_table(results, out_root))
+    md.append(winners_table(results, out_root, copy))
 
     section = None
     for res in results:
@@ -242,25 +268,26 @@ def main():
                                                    res["summary"].get("title", res["name"])))
         md.append("Script: `%s` (README: `%s/README.md`).\n" % (
             res["script"], os.path.dirname(res["script"])))
+        folder, link = item_dir(res["item"], out_root, copy)
         for fig in res["summary"].get("figures", []):
-            md.append("![%s](%s/%s)\n" % (fig, res["name"], fig))
+            md.append("![%s](%s/%s)\n" % (fig, link, fig))
         csvs = res["summary"].get("csv", [])
         if csvs:
-            md.append("Data: " + ", ".join("[%s](%s/%s)" % (c, res["name"], c) for c in csvs) + "\n")
-        rpath = os.path.join(out_root, res["name"], "results.md")
+            md.append("Data: " + ", ".join("[%s](%s/%s)" % (c, link, c) for c in csvs) + "\n")
+        rpath = os.path.join(folder, "results.md")
         if os.path.isfile(rpath) and res["rc"] != -1:
             with open(rpath) as f:
                 text = f.read()
             # Figures referenced by results.md sit in the item's folder.
-            text = text.replace("](", "](%s/" % res["name"]).replace(
-                "](%s/http" % res["name"], "](http").replace("](%s/#" % res["name"], "](#")
+            text = text.replace("](", "](%s/" % link).replace(
+                "](%s/http" % link, "](http").replace("](%s/#" % link, "](#")
             md.append(demote_headings(text) + "\n")
         else:
             md.append("No results (%s).\n" % res["log"][-500:].replace("\n", " "))
-    with open(os.path.join(out_root, "report.md"), "w") as f:
+    with open(report_path, "w") as f:
         f.write("\n".join(md) + "\n")
     print("report: %s (%d items, %d with failures, %.1f min)" % (
-        os.path.join(out_root, "report.md"), len(results), failed, total / 60))
+        os.path.relpath(report_path, REPO), len(results), failed, total / 60))
     return failed
 
 
