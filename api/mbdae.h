@@ -1,0 +1,224 @@
+/* mbdae C API, version 1: drive models from code, step by step, with every internal vector
+ * and matrix.
+ *
+ * Conventions
+ * - Opaque handles: any number of models at once, independent of each other; no global
+ *   "active model". A handle may be used by one thread at a time; different handles from
+ *   different threads at once.
+ * - Every call returns an mbdae_status (MBDAE_OK = 0). On an error, nothing is half-done
+ *   (outputs are left unchanged) and mbdae_last_error() returns the message of this
+ *   thread's last failed call ("" after a successful one). No C++ exception crosses this
+ *   interface.
+ * - Indices are zero-based. Sizes: "n" arguments give the length of the caller's array;
+ *   a wrong length is MBDAE_ERROR_SIZE with the expected length in the message.
+ * - Units SI; vectors in world axes unless said otherwise.
+ * - Coordinates q: per body the centre-of-mass position (3) and the Euler parameters (4);
+ *   v = q', a = q''. Multipliers lambda: the independent constraint equations (redundant
+ *   ones are found when the model is assembled and set aside; their names are listed by
+ *   MBDAE_REDUNDANT).
+ *
+ * Life of a model
+ *   mbdae_model_from_file / mbdae_model_from_string -> (set parameters, spline points,
+ *   options) -> mbdae_assemble (consistent initial state at t = 0; also done by the first
+ *   solve call) -> mbdae_solve (to t_end) or mbdae_solve_to (any number of calls) ->
+ *   read stored outputs, the state, vectors and matrices -> mbdae_model_free.
+ *   Changing a parameter or spline points marks the model for re-assembly: the next
+ *   solve call starts again from t = 0 (stored outputs are cleared then).
+ */
+#ifndef MBDAE_H_
+#define MBDAE_H_
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define MBDAE_API_VERSION 1
+
+typedef enum {
+  MBDAE_OK = 0,
+  MBDAE_ERROR_INPUT = 1,     /* a model file or string with a mistake, a bad option value */
+  MBDAE_ERROR_ARGUMENT = 2,  /* a null handle or pointer, an index or name that does not exist */
+  MBDAE_ERROR_SIZE = 3,      /* an array length that does not match */
+  MBDAE_ERROR_ORDER = 4,     /* a call that needs an earlier one (e.g. outputs before a solve) */
+  MBDAE_ERROR_SOLVER = 5,    /* the integrator or the assembly failed (outputs so far kept) */
+  MBDAE_ERROR_IO = 6,        /* a file could not be read or written */
+  MBDAE_ERROR_INTERNAL = 7   /* a bug: please report the message */
+} mbdae_status;
+
+typedef struct mbdae_model mbdae_model;
+
+/* The message of this thread's last failed call, "" if the last call succeeded. Valid until
+ * the next call from this thread. */
+const char* mbdae_last_error(void);
+/* "0.1.0"; and MBDAE_API_VERSION as compiled into the library. */
+const char* mbdae_version(void);
+int mbdae_api_version(void);
+
+/* ---- Creating and freeing ------------------------------------------------------------ */
+
+/* A model file in the project's format (.yaml) or a FreeDyn file (.fds). */
+mbdae_status mbdae_model_from_file(const char* path, mbdae_model** model);
+/* Model text in the project's format; `name` is used in messages and relative paths
+ * (spline data files, meshes) are resolved against its folder ("" = the working folder). */
+mbdae_status mbdae_model_from_string(const char* text, const char* name, mbdae_model** model);
+/* Frees the model (NULL is allowed). */
+void mbdae_model_free(mbdae_model* model);
+
+/* ---- Sizes and names ------------------------------------------------------------------- */
+
+typedef enum {
+  MBDAE_COORDINATES = 0,  /* q: "body.x" ... "body.e3" */
+  MBDAE_MULTIPLIERS = 1,  /* lambda: the independent constraint equations ("joint.x", ...) */
+  MBDAE_REDUNDANT = 2,    /* the constraint equations set aside as redundant */
+  MBDAE_BODIES = 3,
+  MBDAE_JOINTS = 4,
+  MBDAE_FORCES = 5,
+  MBDAE_MEASURES = 6,
+  MBDAE_PARAMETERS = 7,
+  MBDAE_SPLINES = 8,
+  MBDAE_OUTPUTS = 9       /* stored output rows (no names) */
+} mbdae_kind;
+
+/* MULTIPLIERS and REDUNDANT assemble the model if needed. */
+mbdae_status mbdae_count(mbdae_model* model, mbdae_kind kind, int* count);
+/* The name of item `index` (the pointer stays valid until the model is freed or
+ * re-assembled). */
+mbdae_status mbdae_name(mbdae_model* model, mbdae_kind kind, int index, const char** name);
+/* The index of the item called `name`; MBDAE_ERROR_ARGUMENT if there is none. */
+mbdae_status mbdae_find(mbdae_model* model, mbdae_kind kind, const char* name, int* index);
+
+/* ---- Parameters, splines and options ------------------------------------------------- */
+
+mbdae_status mbdae_get_parameter(mbdae_model* model, int index, double* value);
+/* Sets a parameter as `--set NAME=VALUE` does: parameters, masses, positions and spline
+ * points that depend on it are recomputed; the model is re-assembled at the next solve.
+ * A value that makes the model invalid is MBDAE_ERROR_INPUT (the old value stays). */
+mbdae_status mbdae_set_parameter(mbdae_model* model, int index, double value);
+
+mbdae_status mbdae_spline_size(mbdae_model* model, int index, int* num_points);
+mbdae_status mbdae_get_spline_points(mbdae_model* model, int index, double* x, double* y, int n);
+/* New points (x strictly increasing, at least 2; the spline's interpolation kept). */
+mbdae_status mbdae_set_spline_points(mbdae_model* model, int index, const double* x,
+                                     const double* y, int n);
+
+/* Simulation settings, with the names and value syntax of the model file's `simulation:`
+ * block: "t_end", "output_step", "integrator" (hht|ida), "hht.alpha", "hht.step",
+ * "hht.adaptive" (true|false), "hht.tolerance", "hht.modified", "hht.form"
+ * (equilibrium|negrut), "ida.rtol", "ida.atol". Takes effect at the next assembly
+ * (set before solving). */
+mbdae_status mbdae_set_option(mbdae_model* model, const char* key, const char* value);
+/* The current value as text into buf (size bytes, NUL-terminated). */
+mbdae_status mbdae_get_option(mbdae_model* model, const char* key, char* buf, size_t size);
+
+/* ---- Solving --------------------------------------------------------------------------- */
+
+/* Consistent initial conditions at t = 0 (positions, velocities, accelerations,
+ * multipliers; redundant equations found and set aside); clears stored outputs, stores the
+ * row at t = 0 and makes that the current state. */
+mbdae_status mbdae_assemble(mbdae_model* model);
+/* Integrates from the current state to t_end (assembling first if needed), storing a row
+ * at every output time (0, output_step, 2 output_step, ..., t_end). */
+mbdae_status mbdae_solve(mbdae_model* model);
+/* Integrates from the current state to t (> current time, <= t_end is not required),
+ * storing a row at every output time passed on the way (and none at t unless t is one).
+ * Calling it for each output time gives bitwise the same rows as one mbdae_solve. */
+mbdae_status mbdae_solve_to(mbdae_model* model, double t);
+
+/* The current state: time, q, v, a (each nq = MBDAE_COORDINATES), lambda (nm =
+ * MBDAE_MULTIPLIERS). Any pointer may be NULL. */
+mbdae_status mbdae_get_state(mbdae_model* model, double* t, double* q, double* v, double* a,
+                             double* lambda, int nq, int nm);
+/* Sets the current state and restarts the integrator from it (a co-simulation host's
+ * correction). a and lambda may be NULL: they are then computed from the equations of
+ * motion at (t, q, v). q and v are used as given (not projected). */
+mbdae_status mbdae_set_state(mbdae_model* model, double t, const double* q, const double* v,
+                             const double* a, const double* lambda, int nq, int nm);
+
+/* ---- Stored outputs -------------------------------------------------------------------- */
+
+typedef enum {
+  MBDAE_OUT_TIME = 0,       /* 1 value */
+  MBDAE_OUT_Q = 1,          /* nq */
+  MBDAE_OUT_V = 2,          /* nq */
+  MBDAE_OUT_A = 3,          /* nq */
+  MBDAE_OUT_LAMBDA = 4,     /* nm */
+  MBDAE_OUT_MEASURES = 5,   /* number of measures, as in the results file (unwrapped angles) */
+  MBDAE_OUT_BODY_POSES = 6  /* 12 per body: centre-of-mass position (3), then the rotation
+                               matrix body -> world, row-major (9) */
+} mbdae_output;
+
+/* Row `row` (0 .. MBDAE_OUTPUTS - 1) of quantity `what` into out (n values). */
+mbdae_status mbdae_get_output(mbdae_model* model, int row, mbdae_output what, double* out, int n);
+/* Writes the stored rows as a results file (docs/results-file.md). */
+mbdae_status mbdae_write_results(mbdae_model* model, const char* path);
+
+/* ---- Measures at the current state ----------------------------------------------------- */
+
+/* Values of all measures (n = MBDAE_MEASURES), as the model defines them (no unwrapping). */
+mbdae_status mbdae_measure_values(mbdae_model* model, double* values, int n);
+/* d(measure)/dq at the current state (n = nq). */
+mbdae_status mbdae_measure_gradient(mbdae_model* model, int measure, double* dq, int n);
+
+/* ---- Vectors at the current state ------------------------------------------------------ */
+
+typedef enum {
+  MBDAE_VEC_MASS_TIMES_ACC = 0,       /* M(q) a                                     nq */
+  MBDAE_VEC_CONSTRAINT_FORCES = 1,    /* C_q^T lambda                               nq */
+  MBDAE_VEC_QUADRATIC_VELOCITY = 2,   /* Q_v: the velocity-quadratic inertia terms  nq */
+  MBDAE_VEC_EXTERNAL_FORCES = 3,      /* gravity, force elements                    nq */
+  MBDAE_VEC_SUM_OF_FORCES = 4,        /* Q = Q_v + external                          nq */
+  MBDAE_VEC_CONSTRAINTS = 5,          /* C(q, t)                                     nm */
+  MBDAE_VEC_CONSTRAINTS_DT = 6,       /* dC/dt (partial)                             nm */
+  MBDAE_VEC_CONSTRAINTS_QDOT = 7,     /* d(C_q)/dt q' (total derivative of C_q)      nm */
+  MBDAE_VEC_CONSTRAINTS_DTT = 8       /* d2C/dt2 (partial)                           nm */
+} mbdae_vector;
+
+mbdae_status mbdae_get_vector(mbdae_model* model, mbdae_vector which, double* out, int n);
+
+/* ---- Sparse matrices at the current state ---------------------------------------------- */
+
+typedef enum {
+  MBDAE_MAT_MASS = 0,          /* M                       nq x nq */
+  MBDAE_MAT_CONSTRAINT_DQ = 1, /* C_q                     nm x nq */
+  MBDAE_MAT_MASS_ACC_DQ = 2,   /* d(M a)/dq at fixed a    nq x nq */
+  MBDAE_MAT_FORCE_DQ = 3,      /* dQ/dq                   nq x nq */
+  MBDAE_MAT_FORCE_DV = 4,      /* dQ/dq'                  nq x nq */
+  MBDAE_MAT_CONSTRAINT_T_DQ = 5, /* d(C_q^T lambda)/dq    nq x nq */
+  MBDAE_MAT_NEWTON_HHT = 6,    /* the HHT Newton matrix (docs/hht.md) with the model's HHT
+                                  settings and the Newton step h   (nq + nm) square */
+  MBDAE_MAT_NEWTON_IDA = 7     /* IDA's Newton matrix dF/dy + c_j dF/dy' of the stabilised
+                                  index-2 (GGL) form, y = (q, v, lambda, mu), with
+                                  c_j = 1 / h (IDA's value for a BDF1 step of size h)
+                                  (2 nq + 2 nm) square */
+} mbdae_matrix;
+
+/* The step h of the Newton matrices (default: the option hht.step). */
+mbdae_status mbdae_set_newton_step(mbdae_model* model, double h);
+
+/* A block of a composed matrix: `scale` times matrix `which` (transposed if `transpose`),
+ * its top-left corner at (row, col). */
+typedef struct {
+  mbdae_matrix which;
+  double scale;
+  int row, col;
+  int transpose;
+} mbdae_block;
+
+typedef enum { MBDAE_CSC = 0, MBDAE_CSR = 1 } mbdae_sparse_format;
+
+/* The sum of the blocks as a rows x cols sparse matrix (entries of overlapping blocks are
+ * added; a block outside rows x cols is MBDAE_ERROR_ARGUMENT). Two calls: first with
+ * ptr = idx = val = NULL to get *nnz, then with arrays of sizes (cols + 1 for CSC,
+ * rows + 1 for CSR), nnz and nnz. The pattern is the structural one (entries that are
+ * zero at this state are included). */
+mbdae_status mbdae_get_matrix(mbdae_model* model, const mbdae_block* blocks, int num_blocks,
+                              int rows, int cols, mbdae_sparse_format format, int* nnz,
+                              int* ptr, int* idx, double* val);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MBDAE_H_ */

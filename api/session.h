@@ -1,0 +1,86 @@
+// Internal to the C API (api/mbdae.h): what one mbdae_model handle holds, and the
+// functions the API's source files share. Not installed; not part of the C ABI.
+//
+// Files: api/mbdae_api.cc (the extern "C" functions: handles, errors, names, parameters,
+// splines, options, assembly, solving, stored outputs, results file); api/state_matrices.cc
+// (vectors, matrices, measures at the current state). Every extern "C" function catches
+// everything: ApiError gives its status, mbs::ModelError / driver::InputError
+// MBDAE_ERROR_INPUT, std::bad_alloc and anything else MBDAE_ERROR_INTERNAL.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "api/mbdae.h"
+#include "dae/integrator.h"
+#include "driver/simulation.h"
+#include "mbs/model.h"
+
+namespace mbdae::api {
+
+// An error with its status; what() is the message mbdae_last_error() returns.
+class ApiError : public std::runtime_error {
+ public:
+  ApiError(mbdae_status status, const std::string& message)
+      : std::runtime_error(message), status_(status) {}
+  mbdae_status status() const { return status_; }
+
+ private:
+  mbdae_status status_;
+};
+
+// One stored output row.
+struct OutputRow {
+  double t = 0;
+  std::vector<double> q, v, a, lambda;  // nq, nq, nq, nm (kept equations)
+  std::vector<double> measures;         // unwrapped as in the results file
+  std::vector<double> body_poses;       // 12 per body: position, rotation row-major
+};
+
+}  // namespace mbdae::api
+
+// The handle. Invariants: `model` is always valid (the last successful load with the
+// current parameter values and spline points); `assembly` is null until assembled and
+// is reset (with `integrator`, `state`, `rows`) whenever the model or the settings change.
+struct mbdae_model {
+  // Where the model came from, to rebuild it when a parameter changes.
+  std::string path;  // file path (from_file), or "" (from_string)
+  std::string text;  // the model text (from_string)
+  std::string name;  // for messages
+  std::map<std::string, double> parameter_overrides;  // every parameter set through the API
+  // Spline points set through the API, by spline name (re-applied after a rebuild).
+  std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> spline_points;
+
+  std::unique_ptr<mbdae::mbs::Model> model;
+  mbdae::mbs::SimulationSettings settings;  // the model's, with set_option applied
+
+  std::unique_ptr<mbdae::driver::Assembly> assembly;  // null: not assembled
+  std::unique_ptr<mbdae::dae::Integrator> integrator;  // null: restart from `state`
+  mbdae::dae::State state;  // the current state, of assembly->kept_system
+  double newton_step = 0;   // 0: settings.hht_step
+
+  std::vector<mbdae::api::OutputRow> rows;
+  int next_output = 0;  // index (in driver::OutputTimes) of the next output time to store
+  std::vector<double> previous_measures;  // for unwrapping angles across rows
+
+  // Name lists (stable pointers for mbdae_name), filled on demand.
+  std::vector<std::string> names_cache[10];
+};
+
+namespace mbdae::api {
+
+// Assembles if needed (throws ApiError MBDAE_ERROR_SOLVER or INPUT with the reason).
+void EnsureAssembled(mbdae_model& m);
+
+// Implemented in api/state_matrices.cc. All throw ApiError.
+void MeasureValues(mbdae_model& m, double* values, int n);
+void MeasureGradient(mbdae_model& m, int measure, double* dq, int n);
+void GetVector(mbdae_model& m, mbdae_vector which, double* out, int n);
+void GetMatrix(mbdae_model& m, const mbdae_block* blocks, int num_blocks, int rows, int cols,
+               mbdae_sparse_format format, int* nnz, int* ptr, int* idx, double* val);
+
+}  // namespace mbdae::api
