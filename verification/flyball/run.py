@@ -120,6 +120,7 @@ def crawl_case(mbdae, runner):
                               timeout=CRAWL_SECONDS)
         code = proc.returncode
         message = proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else ""
+        message = message.replace(path, "RESULTS.h5")  # no machine path in the report
     except subprocess.TimeoutExpired:
         timed_out, code = True, None
     wall = time.time() - t0
