@@ -1,0 +1,32 @@
+"""mbdae: drive multibody models from Python, step by step, with every internal vector and
+matrix.
+
+A thin layer on the C API (api/mbdae.h) through ctypes: numpy arrays in and out, scipy
+sparse matrices for the matrices, exceptions with the library's message. Example::
+
+    import mbdae
+
+    with mbdae.Model("examples/pendulum.yaml") as m:
+        m.options["integrator"] = "hht"
+        m.options["hht.step"] = 1e-3
+        m.solve()
+        print(m.outputs.time[-1], m.outputs.q[-1])
+
+The library libmbdae.so is found through the environment variable MBDAE_LIBRARY, next to
+this package, or in the build tree of a source checkout (see :data:`library_path`).
+"""
+
+from . import _lib
+from .errors import (ArgumentError, Error, FileError, InputError, InternalError, IOError_,
+                     OrderError, SizeError, SolverError)
+from .model import MATRICES, OPTIONS, VECTORS, Model, Row, State
+
+__version__ = _lib.lib.mbdae_version().decode()
+#: The path of the loaded libmbdae.so.
+library_path = _lib.path
+#: The C API version (MBDAE_API_VERSION) of the loaded library.
+api_version = _lib.lib.mbdae_api_version()
+
+__all__ = ["Model", "State", "Row", "Error", "InputError", "ArgumentError", "SizeError",
+           "OrderError", "SolverError", "FileError", "IOError_", "InternalError", "VECTORS",
+           "MATRICES", "OPTIONS", "library_path", "api_version", "__version__"]
