@@ -99,6 +99,9 @@ def _declare(lib):
 
 def _load():
     tried = []
+    env = os.environ.get("MBDAE_LIBRARY")
+    if env and not os.path.isfile(env):  # an explicit choice that fails is not skipped
+        raise ImportError("mbdae: MBDAE_LIBRARY is %s, which is not a file" % env)
     for where, path in _candidates():
         if not os.path.isfile(path):
             tried.append("%s: %s (no such file)" % (where, path))
@@ -106,6 +109,8 @@ def _load():
         try:
             lib = ctypes.CDLL(path)
         except OSError as e:
+            if where == "MBDAE_LIBRARY":
+                raise ImportError("mbdae: MBDAE_LIBRARY: cannot load %s: %s" % (path, e))
             tried.append("%s: %s (%s)" % (where, path, e))
             continue
         try:
