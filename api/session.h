@@ -33,19 +33,27 @@ class ApiError : public std::runtime_error {
   mbdae_status status_;
 };
 
-// One stored output row.
+// One stored output row: the state, and everything the results file holds of it (so
+// that mbdae_write_results needs neither the model nor the assembly of the run).
 struct OutputRow {
   double t = 0;
   std::vector<double> q, v, a, lambda;  // nq, nq, nq, nm (kept equations)
   std::vector<double> measures;         // unwrapped as in the results file
   std::vector<double> body_poses;       // 12 per body: position, rotation row-major
+  std::vector<double> body_data;        // 13 per body: position, Euler parameters, v, omega
+  std::vector<double> joint_data;       // 6 per joint: reaction force, torque
+  std::vector<double> force_data;       // 6 per force element: force, torque
+  double kinetic_energy = 0, potential_energy = 0;
+  double position_violation = 0, velocity_violation = 0;
 };
 
 }  // namespace mbdae::api
 
 // The handle. Invariants: `model` is always valid (the last successful load with the
 // current parameter values and spline points); `assembly` is null until assembled and
-// is reset (with `integrator`, `state`, `rows`) whenever the model or the settings change.
+// is reset (with `integrator`, `state`, `row_builder`) whenever the model or the settings
+// change. `rows` and `run` (what the results file says of the run) stay until the next
+// assembly, which clears them and stores the row at t = 0.
 struct mbdae_model {
   // Where the model came from, to rebuild it when a parameter changes.
   std::string path;  // file path (from_file), or "" (from_string)
@@ -56,6 +64,7 @@ struct mbdae_model {
   std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> spline_points;
 
   std::unique_ptr<mbdae::mbs::Model> model;
+  mbdae::driver::SettingsOverrides option_overrides;  // every option set through the API
   mbdae::mbs::SimulationSettings settings;  // the model's, with set_option applied
 
   std::unique_ptr<mbdae::driver::Assembly> assembly;  // null: not assembled
@@ -65,10 +74,28 @@ struct mbdae_model {
 
   std::vector<mbdae::api::OutputRow> rows;
   int next_output = 0;  // index (in driver::OutputTimes) of the next output time to store
-  std::vector<double> previous_measures;  // for unwrapping angles across rows
+  std::vector<double> output_times;  // driver::OutputTimes of the settings
 
-  // Name lists (stable pointers for mbdae_name), filled on demand.
+  // The run whose rows are stored: its description, the counters of the integrators
+  // finished since the assembly (a restart by set_state or after a failure starts a new
+  // integrator), times, and how the last solve call ended.
+  mbdae::driver::RunDescription run;
+  mbdae::dae::Summary finished_counters;
+  double solver_cpu_time = 0;
+  double wall_time = 0;
+  bool failed = false;
+  std::string failure_reason;
+  double t_failed = 0;  // the time the failed integrator reached
+
+  // Name lists (stable pointers for mbdae_name), filled on demand; names_valid[kind] is
+  // false until filled and after the model is rebuilt (or re-assembled, for the
+  // multipliers and the redundant equations).
   std::vector<std::string> names_cache[10];
+  bool names_valid[10] = {};
+
+  // Measures of the rows (unwrapping, offsets), of `model` and `assembly`: declared last,
+  // so destroyed before them.
+  std::unique_ptr<mbdae::driver::OutputRowBuilder> row_builder;
 };
 
 namespace mbdae::api {

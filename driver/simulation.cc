@@ -15,7 +15,6 @@
 
 #include "dae/hht.h"
 #include "dae/ida.h"
-#include "io/results_file.h"
 
 namespace mbdae::driver {
 namespace {
@@ -375,50 +374,35 @@ std::string SimulationSummary::FullReport() const {
   return s.str();
 }
 
-SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
-                           const mbs::SimulationSettings& settings,
-                           const SimulationOptions& options) {
-  assert(asmb.system && asmb.kept_system);
-  const auto start = std::chrono::steady_clock::now();
-  mbs::MultibodySystem& sys = *asmb.system;
-  dae::MechanicalSystem& kept = *asmb.kept_system;
-  const int nq = sys.num_coordinates();
-  const int nc_full = sys.num_constraints();
-  const int nc = kept.num_constraints();
-  const int nb = static_cast<int>(model.bodies.size());
-  const int nm = static_cast<int>(model.measures.size());
-  const int nj = static_cast<int>(model.joints.size());
-  const int nf = static_cast<int>(model.forces.size());
+RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
+                           const mbs::SimulationSettings& settings, const std::string& model_path,
+                           const std::string& integrator_detail) {
+  RunDescription r;
+  r.layout.q_names = asmb.system->coordinate_names();
+  r.layout.lambda_names = asmb.kept_names();
+  for (const auto& b : model.bodies) r.layout.bodies.push_back(b.name);
+  for (const auto& m : model.measures) r.layout.measures.push_back(m.name);
+  for (const auto& j : model.joints) r.layout.joints.push_back(j.name);
+  for (const auto& f : model.forces) r.layout.forces.push_back(f.name);
+  r.model = model_path.empty() ? model.file : model_path;
+  r.model_name = model.name;
+  r.settings = settings;
+  r.integrator_detail = integrator_detail;
+  r.redundant_constraints = asmb.redundant_names();
+  r.assembly_max_position_change = asmb.max_position_change;
+  r.assembly_max_velocity_change = asmb.max_velocity_change;
+  r.assembly_moved_bodies = asmb.moved_bodies;
+  for (const auto& p : model.parameters) r.parameters.emplace_back(p.name, p.value);
+  return r;
+}
 
-  SimulationSummary summary;
-  summary.integrator = IntegratorName(settings.integrator);
-  summary.t_end = settings.t_end;
-  summary.redundant_constraints = asmb.redundant_names();
-  summary.results_path = options.results_path;
-
-  std::unique_ptr<dae::Integrator> integrator;
-  if (settings.integrator == mbs::IntegratorKind::kHht)
-    integrator = dae::MakeHhtIntegrator(kept, HhtFrom(settings));
-  else
-    integrator = dae::MakeIdaIntegrator(kept, IdaFrom(settings));
-  summary.integrator_detail = integrator->name();
-  integrator->Initialize(asmb.x0);
-
-  io::ResultsLayout layout;
-  layout.q_names = sys.coordinate_names();
-  layout.lambda_names = asmb.kept_names();
-  for (const auto& b : model.bodies) layout.bodies.push_back(b.name);
-  for (const auto& m : model.measures) layout.measures.push_back(m.name);
-  for (const auto& j : model.joints) layout.joints.push_back(j.name);
-  for (const auto& f : model.forces) layout.forces.push_back(f.name);
-  io::ResultsFile file(options.results_path, layout);
-  file.set_flush_interval(options.flush_interval);
-
+void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
+  const mbs::SimulationSettings& settings = run.settings;
   file.SetAttribute("format", 1);
-  file.SetAttribute("model", options.model_path.empty() ? model.file : options.model_path);
-  file.SetAttribute("model_name", model.name);
-  file.SetAttribute("integrator", summary.integrator);
-  file.SetAttribute("integrator_detail", summary.integrator_detail);
+  file.SetAttribute("model", run.model);
+  file.SetAttribute("model_name", run.model_name);
+  file.SetAttribute("integrator", IntegratorName(settings.integrator));
+  file.SetAttribute("integrator_detail", run.integrator_detail);
   file.SetAttribute("t_end", settings.t_end);
   file.SetAttribute("output_step", settings.output_step);
   if (settings.integrator == mbs::IntegratorKind::kHht) {
@@ -434,95 +418,175 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   }
   file.SetAttribute("status", "running");
   file.SetAttribute("t_reached", 0.0);
-  file.SetAttribute("redundant_constraints", static_cast<long>(summary.redundant_constraints.size()));
-  file.SetAttribute("redundant_constraint_names", summary.redundant_constraints);
-  file.SetAttribute("assembly_max_position_change", asmb.max_position_change);
-  file.SetAttribute("assembly_max_velocity_change", asmb.max_velocity_change);
-  file.SetAttribute("assembly_moved_bodies", asmb.moved_bodies);
-  for (const auto& p : model.parameters) file.SetAttribute("parameter." + p.name, p.value);
+  file.SetAttribute("redundant_constraints", static_cast<long>(run.redundant_constraints.size()));
+  file.SetAttribute("redundant_constraint_names", run.redundant_constraints);
+  file.SetAttribute("assembly_max_position_change", run.assembly_max_position_change);
+  file.SetAttribute("assembly_max_velocity_change", run.assembly_max_velocity_change);
+  file.SetAttribute("assembly_moved_bodies", run.assembly_moved_bodies);
+  for (const auto& p : run.parameters) file.SetAttribute("parameter." + p.first, p.second);
+}
 
-  // Workspaces of one row.
-  std::vector<double> lambda_full(nc_full, 0.0), body(13 * nb), measures(nm), raw(nm),
-      previous(nm), initial(nm), joints(6 * nj), forces(6 * nf), c(nc), cdt(nc), cv(nc);
-  const dae::CscPattern& pcq = kept.pattern(dae::Matrix::kConstraintDq);
-  std::vector<double> cq(pcq.nnz());
-  bool first = true;
+void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summary) {
+  const bool ok = summary.status == SimulationSummary::Status::kDone;
+  file.SetAttribute("status", ok ? "done" : "failed");
+  file.SetAttribute("t_reached", summary.t_reached);
+  if (!ok) file.SetAttribute("failure_reason", summary.failure_reason);
+  file.SetAttribute("steps_accepted", summary.counters.steps_accepted);
+  file.SetAttribute("steps_rejected", summary.counters.steps_rejected);
+  file.SetAttribute("newton_iterations", summary.counters.newton_iterations);
+  file.SetAttribute("jacobian_evaluations", summary.counters.jacobian_evaluations);
+  file.SetAttribute("factorizations", summary.counters.factorizations);
+  file.SetAttribute("residual_evaluations", summary.counters.residual_evaluations);
+  file.SetAttribute("wall_time", summary.wall_time);
+  file.SetAttribute("solver_cpu_time", summary.solver_cpu_time);
+  file.SetAttribute("max_position_violation", summary.max_position_violation);
+  file.SetAttribute("max_velocity_violation", summary.max_velocity_violation);
+}
 
-  auto write_row = [&](const dae::State& x) {
-    const double t = x.t;
-    std::fill(lambda_full.begin(), lambda_full.end(), 0.0);
-    for (int k = 0; k < nc; ++k) lambda_full[asmb.kept[k]] = x.lambda[k];
-    for (int b = 0; b < nb; ++b) {
-      const double* q = x.q.data() + 7 * b;
-      const double* v = x.v.data() + 7 * b;
-      double* out = body.data() + 13 * b;
-      std::copy(q, q + 3, out);
-      std::copy(q + 3, q + 7, out + 3);
-      std::copy(v, v + 3, out + 7);
-      AngularVelocityWorld(q + 3, v + 3, out + 10);
-    }
-    if (nm > 0) sys.EvaluateMeasures(t, x.q.data(), x.v.data(), x.a.data(), raw.data());
-    for (int m = 0; m < nm; ++m) {
-      const auto& meas = model.measures[m];
-      double value = raw[m];
-      if (meas.type == mbs::MeasureType::kRotational && meas.quantity == mbs::Quantity::kPosition &&
-          !first)
-        value = UnwrapAngle(value, previous[m]);
-      previous[m] = value;
-      if (first) initial[m] = value;
-      measures[m] = meas.offset_initial ? value - initial[m] : value;
-    }
-    for (int j = 0; j < nj; ++j)
-      sys.JointReaction(j, t, x.q.data(), lambda_full.data(), joints.data() + 6 * j,
-                        joints.data() + 6 * j + 3);
-    for (int f = 0; f < nf; ++f)
-      sys.ForceAction(f, t, x.q.data(), x.v.data(), forces.data() + 6 * f,
-                      forces.data() + 6 * f + 3);
-    double pos_violation = 0, vel_violation = 0;
-    if (nc > 0) {
-      dae::EvalInput in;
-      in.t = t;
-      in.q = x.q.data();
-      in.v = x.v.data();
-      in.a = x.a.data();
-      dae::EvalOutput out;
-      out.constraint = c.data();
-      out.constraint_dt = cdt.data();
-      out[dae::Matrix::kConstraintDq] = cq.data();
-      if (kept.Evaluate(in, out) == 0) {
-        cv = cdt;
-        dae::MultiplyAdd(pcq, cq.data(), 1.0, x.v.data(), cv.data());
-        for (int k = 0; k < nc; ++k) {
-          pos_violation = std::max(pos_violation, std::abs(c[k]));
-          vel_violation = std::max(vel_violation, std::abs(cv[k]));
-        }
-      } else {
-        pos_violation = vel_violation = std::numeric_limits<double>::quiet_NaN();
+std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
+                                                const mbs::SimulationSettings& settings) {
+  if (settings.integrator == mbs::IntegratorKind::kHht)
+    return dae::MakeHhtIntegrator(system, HhtFrom(settings));
+  return dae::MakeIdaIntegrator(system, IdaFrom(settings));
+}
+
+OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb)
+    : model_(model), asmb_(asmb) {
+  assert(asmb.system && asmb.kept_system);
+  nq_ = asmb.system->num_coordinates();
+  nc_full_ = asmb.system->num_constraints();
+  nc_ = asmb.kept_system->num_constraints();
+  nb_ = static_cast<int>(model.bodies.size());
+  nm_ = static_cast<int>(model.measures.size());
+  nj_ = static_cast<int>(model.joints.size());
+  nf_ = static_cast<int>(model.forces.size());
+  lambda_full_.assign(nc_full_, 0.0);
+  body_.assign(13 * nb_, 0.0);
+  measures_.assign(nm_, 0.0);
+  raw_.assign(nm_, 0.0);
+  previous_.assign(nm_, 0.0);
+  initial_.assign(nm_, 0.0);
+  joints_.assign(6 * nj_, 0.0);
+  forces_.assign(6 * nf_, 0.0);
+  c_.assign(nc_, 0.0);
+  cdt_.assign(nc_, 0.0);
+  cv_.assign(nc_, 0.0);
+  cq_.assign(asmb.kept_system->pattern(dae::Matrix::kConstraintDq).nnz(), 0.0);
+}
+
+void OutputRowBuilder::ContinueAfter(const double* measures) {
+  for (int m = 0; m < nm_; ++m)
+    previous_[m] = model_.measures[m].offset_initial ? measures[m] + initial_[m] : measures[m];
+  first_ = false;
+}
+
+const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
+  mbs::MultibodySystem& sys = *asmb_.system;
+  dae::MechanicalSystem& kept = *asmb_.kept_system;
+  const double t = x.t;
+  std::fill(lambda_full_.begin(), lambda_full_.end(), 0.0);
+  for (int k = 0; k < nc_; ++k) lambda_full_[asmb_.kept[k]] = x.lambda[k];
+  for (int b = 0; b < nb_; ++b) {
+    const double* q = x.q.data() + 7 * b;
+    const double* v = x.v.data() + 7 * b;
+    double* out = body_.data() + 13 * b;
+    std::copy(q, q + 3, out);
+    std::copy(q + 3, q + 7, out + 3);
+    std::copy(v, v + 3, out + 7);
+    AngularVelocityWorld(q + 3, v + 3, out + 10);
+  }
+  if (nm_ > 0) sys.EvaluateMeasures(t, x.q.data(), x.v.data(), x.a.data(), raw_.data());
+  for (int m = 0; m < nm_; ++m) {
+    const auto& meas = model_.measures[m];
+    double value = raw_[m];
+    if (meas.type == mbs::MeasureType::kRotational && meas.quantity == mbs::Quantity::kPosition &&
+        !first_)
+      value = UnwrapAngle(value, previous_[m]);
+    previous_[m] = value;
+    if (first_) initial_[m] = value;
+    measures_[m] = meas.offset_initial ? value - initial_[m] : value;
+  }
+  for (int j = 0; j < nj_; ++j)
+    sys.JointReaction(j, t, x.q.data(), lambda_full_.data(), joints_.data() + 6 * j,
+                      joints_.data() + 6 * j + 3);
+  for (int f = 0; f < nf_; ++f)
+    sys.ForceAction(f, t, x.q.data(), x.v.data(), forces_.data() + 6 * f,
+                    forces_.data() + 6 * f + 3);
+  double pos_violation = 0, vel_violation = 0;
+  if (nc_ > 0) {
+    dae::EvalInput in;
+    in.t = t;
+    in.q = x.q.data();
+    in.v = x.v.data();
+    in.a = x.a.data();
+    dae::EvalOutput out;
+    out.constraint = c_.data();
+    out.constraint_dt = cdt_.data();
+    out[dae::Matrix::kConstraintDq] = cq_.data();
+    if (kept.Evaluate(in, out) == 0) {
+      cv_ = cdt_;
+      dae::MultiplyAdd(kept.pattern(dae::Matrix::kConstraintDq), cq_.data(), 1.0, x.v.data(),
+                       cv_.data());
+      for (int k = 0; k < nc_; ++k) {
+        pos_violation = std::max(pos_violation, std::abs(c_[k]));
+        vel_violation = std::max(vel_violation, std::abs(cv_[k]));
       }
+    } else {
+      pos_violation = vel_violation = std::numeric_limits<double>::quiet_NaN();
     }
-    if (!std::isnan(pos_violation))
-      summary.max_position_violation = std::max(summary.max_position_violation, pos_violation);
-    if (!std::isnan(vel_violation))
-      summary.max_velocity_violation = std::max(summary.max_velocity_violation, vel_violation);
+  }
 
-    io::ResultsRow row;
-    row.t = t;
-    row.q = x.q.data();
-    row.v = x.v.data();
-    row.a = x.a.data();
-    row.lambda = x.lambda.data();
-    row.body_data = body.data();
-    row.measures = measures.data();
-    row.joint_data = joints.data();
-    row.force_data = forces.data();
-    row.kinetic_energy = sys.KineticEnergy(x.q.data(), x.v.data());
-    row.potential_energy = sys.PotentialEnergy(t, x.q.data());
-    row.position_violation = pos_violation;
-    row.velocity_violation = vel_violation;
+  row_ = io::ResultsRow();
+  row_.t = t;
+  row_.q = x.q.data();
+  row_.v = x.v.data();
+  row_.a = x.a.data();
+  row_.lambda = x.lambda.data();
+  row_.body_data = body_.data();
+  row_.measures = measures_.data();
+  row_.joint_data = joints_.data();
+  row_.force_data = forces_.data();
+  row_.kinetic_energy = sys.KineticEnergy(x.q.data(), x.v.data());
+  row_.potential_energy = sys.PotentialEnergy(t, x.q.data());
+  row_.position_violation = pos_violation;
+  row_.velocity_violation = vel_violation;
+  first_ = false;
+  return row_;
+}
+
+SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
+                           const mbs::SimulationSettings& settings,
+                           const SimulationOptions& options) {
+  assert(asmb.system && asmb.kept_system);
+  const auto start = std::chrono::steady_clock::now();
+  dae::MechanicalSystem& kept = *asmb.kept_system;
+
+  SimulationSummary summary;
+  summary.integrator = IntegratorName(settings.integrator);
+  summary.t_end = settings.t_end;
+  summary.redundant_constraints = asmb.redundant_names();
+  summary.results_path = options.results_path;
+
+  std::unique_ptr<dae::Integrator> integrator = MakeIntegrator(kept, settings);
+  summary.integrator_detail = integrator->name();
+  integrator->Initialize(asmb.x0);
+
+  const RunDescription run =
+      DescribeRun(model, asmb, settings, options.model_path, summary.integrator_detail);
+  io::ResultsFile file(options.results_path, run.layout);
+  file.set_flush_interval(options.flush_interval);
+  WriteRunAttributes(file, run);
+
+  OutputRowBuilder rows(model, asmb);
+  auto write_row = [&](const dae::State& x) {
+    const io::ResultsRow& row = rows.Compute(x);
+    if (!std::isnan(row.position_violation))
+      summary.max_position_violation = std::max(summary.max_position_violation, row.position_violation);
+    if (!std::isnan(row.velocity_violation))
+      summary.max_velocity_violation = std::max(summary.max_velocity_violation, row.velocity_violation);
     file.AppendRow(row);
-    first = false;
-    summary.t_reached = t;
-    if (options.progress) options.progress(t, settings.t_end);
+    summary.t_reached = x.t;
+    if (options.progress) options.progress(x.t, settings.t_end);
   };
 
   const std::vector<double> times = OutputTimes(settings.t_end, settings.output_step);
@@ -562,19 +626,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   summary.wall_time =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  file.SetAttribute("status", ok ? "done" : "failed");
-  file.SetAttribute("t_reached", summary.t_reached);
-  if (!ok) file.SetAttribute("failure_reason", summary.failure_reason);
-  file.SetAttribute("steps_accepted", summary.counters.steps_accepted);
-  file.SetAttribute("steps_rejected", summary.counters.steps_rejected);
-  file.SetAttribute("newton_iterations", summary.counters.newton_iterations);
-  file.SetAttribute("jacobian_evaluations", summary.counters.jacobian_evaluations);
-  file.SetAttribute("factorizations", summary.counters.factorizations);
-  file.SetAttribute("residual_evaluations", summary.counters.residual_evaluations);
-  file.SetAttribute("wall_time", summary.wall_time);
-  file.SetAttribute("solver_cpu_time", summary.solver_cpu_time);
-  file.SetAttribute("max_position_violation", summary.max_position_violation);
-  file.SetAttribute("max_velocity_violation", summary.max_velocity_violation);
+  WriteSummaryAttributes(file, summary);
   file.Flush();
   return summary;
 }

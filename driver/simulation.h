@@ -17,10 +17,12 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dae/consistent.h"
 #include "dae/integrator.h"
+#include "io/results_file.h"
 #include "mbs/model.h"
 #include "mbs/system.h"
 
@@ -121,6 +123,70 @@ struct SimulationSummary {
   std::string results_path;
 
   std::string FullReport() const;  // the multi-line summary the program prints
+};
+
+// What a results file says about its run before the first row: the layout (names) and
+// the attributes written when the file is created (docs/results-file.md). Kept apart from
+// the model and the assembly so that a front end can write a file later (the C API).
+struct RunDescription {
+  io::ResultsLayout layout;
+  std::string model;  // the `model` attribute: the path as given
+  std::string model_name;
+  mbs::SimulationSettings settings;
+  std::string integrator_detail;  // Integrator::name()
+  std::vector<std::string> redundant_constraints;
+  double assembly_max_position_change = 0;
+  double assembly_max_velocity_change = 0;
+  std::vector<std::string> assembly_moved_bodies;
+  std::vector<std::pair<std::string, double>> parameters;  // name, value
+};
+
+// model_path: the `model` attribute ("" gives model.file).
+RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
+                           const mbs::SimulationSettings& settings, const std::string& model_path,
+                           const std::string& integrator_detail);
+// The attributes known before the run (status "running", t_reached 0).
+void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run);
+// The attributes of the end of the run: status, t_reached, failure_reason (when failed),
+// counters, times, violations.
+void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summary);
+
+// The integrator of the settings (HHT or IDA) on `system`, not yet initialised. Throws
+// InputError for settings that cannot be used.
+std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
+                                                const mbs::SimulationSettings& settings);
+
+// The quantities of one output row beyond the state: body data, measures (angles
+// unwrapped across the rows, offset_initial taken from the first row), joint reactions,
+// force element actions, energies and constraint violations. Workspaces are allocated
+// once; Compute does not allocate. References `model` and `asmb`, which must outlive it.
+class OutputRowBuilder {
+ public:
+  OutputRowBuilder(const mbs::Model& model, Assembly& asmb);
+
+  // The row at x (a state of asmb.kept_system, lambda of the kept equations). The pointers
+  // of the returned row point into x and into this object: valid until the next call.
+  const io::ResultsRow& Compute(const dae::State& x);
+
+  // The next row is a first row again (no unwrapping, initial measure values taken).
+  void Restart() { first_ = true; }
+  // Continue after a row whose measures (as returned, offsets applied) were `measures`:
+  // the unwrapping references are taken from them (the initial values are kept).
+  void ContinueAfter(const double* measures);
+
+  int num_bodies() const { return nb_; }
+  int num_measures() const { return nm_; }
+  int num_joints() const { return nj_; }
+  int num_forces() const { return nf_; }
+
+ private:
+  const mbs::Model& model_;
+  Assembly& asmb_;
+  int nq_, nc_full_, nc_, nb_, nm_, nj_, nf_;
+  std::vector<double> lambda_full_, body_, measures_, raw_, previous_, initial_, joints_,
+      forces_, c_, cdt_, cv_, cq_;
+  bool first_ = true;
+  io::ResultsRow row_;
 };
 
 // Integrates from asmb.x0 to settings.t_end, writing one row per output time to a new
