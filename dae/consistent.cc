@@ -238,6 +238,7 @@ class KeptConstraints final : public MechanicalSystem {
     c_.assign(nc, 0.0);
     ct_.assign(nc, 0.0);
     gamma_.assign(nc, 0.0);
+    ctt_.assign(nc, 0.0);
     w_.assign(nc, 0.0);
     cq_full_.assign(base_.pattern(Matrix::kConstraintDq).nnz(), 0.0);
     veldq_full_.assign(base_.pattern(Matrix::kConstraintVelDq).nnz(), 0.0);
@@ -266,6 +267,7 @@ class KeptConstraints final : public MechanicalSystem {
     if (out.constraint) bout.constraint = c_.data();
     if (out.constraint_dt) bout.constraint_dt = ct_.data();
     if (out.acc_rhs) bout.acc_rhs = gamma_.data();
+    if (out.constraint_dtt) bout.constraint_dtt = ctt_.data();
     if (out[Matrix::kConstraintDq]) bout[Matrix::kConstraintDq] = cq_full_.data();
     if (out[Matrix::kConstraintVelDq]) bout[Matrix::kConstraintVelDq] = veldq_full_.data();
     const int code = base_.Evaluate(bin, bout);
@@ -275,6 +277,7 @@ class KeptConstraints final : public MechanicalSystem {
       if (out.constraint) out.constraint[k] = c_[r];
       if (out.constraint_dt) out.constraint_dt[k] = ct_[r];
       if (out.acc_rhs) out.acc_rhs[k] = gamma_[r];
+      if (out.constraint_dtt) out.constraint_dtt[k] = ctt_[r];
     }
     if (double* dst = out[Matrix::kConstraintDq])
       for (size_t k = 0; k < cq_map_.size(); ++k) dst[k] = cq_full_[cq_map_[k]];
@@ -309,7 +312,7 @@ class KeptConstraints final : public MechanicalSystem {
   std::vector<int> kept_;
   CscPattern cq_, veldq_;
   std::vector<int> cq_map_, veldq_map_;
-  std::vector<double> c_, ct_, gamma_, w_, cq_full_, veldq_full_;
+  std::vector<double> c_, ct_, gamma_, ctt_, w_, cq_full_, veldq_full_;
 };
 
 }  // namespace

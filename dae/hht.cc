@@ -93,6 +93,73 @@ bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {
   return true;
 }
 
+HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options)
+    : system_(system) {
+  const int nq = system_.num_coordinates(), nc = system_.num_constraints();
+  alpha_ = options.alpha;
+  beta_ = (1 - alpha_) * (1 - alpha_) / 4;
+  gamma_ = 0.5 - alpha_;
+  equilibrium_ = options.form == HhtOptions::Form::kEquilibrium;
+  std::string err;
+  for (int m = 0; m < kNumMatrices; ++m) {
+    const CscPattern& p = system_.pattern(static_cast<Matrix>(m));
+    if (!p.IsValid(&err))
+      throw std::invalid_argument("HHT: pattern of matrix " + std::to_string(m) + ": " + err);
+    if (m != static_cast<int>(Matrix::kConstraintVelDq)) mat_[m].assign(p.nnz(), 0.0);
+  }
+  auto check_dims = [&](Matrix m, int rows, const char* name) {
+    const CscPattern& p = system_.pattern(m);
+    if (p.rows != rows || p.cols != nq)
+      throw std::invalid_argument(std::string("HHT: pattern of ") + name + " is " +
+                                  std::to_string(p.rows) + " x " + std::to_string(p.cols) +
+                                  ", expected " + std::to_string(rows) + " x " +
+                                  std::to_string(nq));
+  };
+  check_dims(Matrix::kMass, nq, "M");
+  check_dims(Matrix::kMassTimesAccDq, nq, "d(Ma)/dq");
+  check_dims(Matrix::kForceDq, nq, "dQ/dq");
+  check_dims(Matrix::kForceDv, nq, "dQ/dv");
+  check_dims(Matrix::kConstraintDq, nc, "C_q");
+  check_dims(Matrix::kConstraintTDq, nq, "d(C_q^T w)/dq");
+  b_mass_ = assembler_.AddBlock(system_.pattern(Matrix::kMass), 0, 0);
+  b_kma_ = assembler_.AddBlock(system_.pattern(Matrix::kMassTimesAccDq), 0, 0);
+  b_kc_ = assembler_.AddBlock(system_.pattern(Matrix::kConstraintTDq), 0, 0);
+  b_qq_ = assembler_.AddBlock(system_.pattern(Matrix::kForceDq), 0, 0);
+  b_qv_ = assembler_.AddBlock(system_.pattern(Matrix::kForceDv), 0, 0);
+  b_cqt_ = assembler_.AddBlock(system_.pattern(Matrix::kConstraintDq), 0, nq, /*transpose=*/true);
+  b_cq_ = assembler_.AddBlock(system_.pattern(Matrix::kConstraintDq), nq, 0);
+  std::vector<std::pair<int, int>> diag;
+  for (int i = 0; i < nq + nc; ++i) diag.push_back({i, i});
+  assembler_.AddEntries(diag);
+  assembler_.Finalize(nq + nc, nq + nc);
+}
+
+int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double* v,
+                              const double* a, const double* lambda, double* values) {
+  EvalInput in;
+  in.t = t;
+  in.q = q;
+  in.v = v;
+  in.a = a;
+  in.w = lambda;
+  EvalOutput out;
+  for (int m = 0; m < kNumMatrices; ++m)
+    if (m != static_cast<int>(Matrix::kConstraintVelDq)) out.matrix[m] = mat_[m].data();
+  const int rc = system_.Evaluate(in, out);
+  if (rc != 0) return rc;
+  auto M = [&](Matrix m) { return mat_[static_cast<int>(m)].data(); };
+  const double s = 1 / (1 + alpha_), bh2 = beta_ * h * h;
+  assembler_.SetZero(values);
+  assembler_.Accumulate(b_mass_, M(Matrix::kMass), s, values);
+  assembler_.Accumulate(b_kma_, M(Matrix::kMassTimesAccDq), equilibrium_ ? bh2 : bh2 * s, values);
+  assembler_.Accumulate(b_kc_, M(Matrix::kConstraintTDq), bh2, values);
+  assembler_.Accumulate(b_qq_, M(Matrix::kForceDq), -bh2, values);
+  assembler_.Accumulate(b_qv_, M(Matrix::kForceDv), -gamma_ * h, values);
+  assembler_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), equilibrium_ ? s : 1.0, values);
+  assembler_.Accumulate(b_cq_, M(Matrix::kConstraintDq), 1.0, values);
+  return 0;
+}
+
 namespace {
 
 // A number for messages: %.6g (std::to_string prints 1e-12 as 0.000000).
@@ -126,7 +193,7 @@ inline void QuatMul(const double* p, const double* r, double* out) {
 class HhtIntegrator final : public Integrator {
  public:
   HhtIntegrator(MechanicalSystem& system, const HhtOptions& options)
-      : sys_(system), opt_(options) {
+      : sys_(system), opt_(options), newton_(system, options) {
     std::string err;
     if (!opt_.IsValid(&err)) throw std::invalid_argument(err);
     nq_ = sys_.num_coordinates();
@@ -143,40 +210,12 @@ class HhtIntegrator final : public Integrator {
         throw std::invalid_argument("HHT: quaternion offset " + std::to_string(g) +
                                     " outside the coordinates");
 
-    // Matrix buffers and the Newton-matrix pattern, computed once.
-    for (int m = 0; m < kNumMatrices; ++m) {
-      const CscPattern& p = sys_.pattern(static_cast<Matrix>(m));
-      if (!p.IsValid(&err))
-        throw std::invalid_argument("HHT: pattern of matrix " + std::to_string(m) + ": " + err);
-      mat_[m].assign(p.nnz(), 0.0);
-    }
-    auto check_dims = [&](Matrix m, int rows, const char* name) {
-      const CscPattern& p = sys_.pattern(m);
-      if (p.rows != rows || p.cols != nq_)
-        throw std::invalid_argument(std::string("HHT: pattern of ") + name + " is " +
-                                    std::to_string(p.rows) + " x " + std::to_string(p.cols) +
-                                    ", expected " + std::to_string(rows) + " x " +
-                                    std::to_string(nq_));
-    };
-    check_dims(Matrix::kMass, nq_, "M");
-    check_dims(Matrix::kMassTimesAccDq, nq_, "d(Ma)/dq");
-    check_dims(Matrix::kForceDq, nq_, "dQ/dq");
-    check_dims(Matrix::kForceDv, nq_, "dQ/dv");
-    check_dims(Matrix::kConstraintDq, nc_, "C_q");
-    check_dims(Matrix::kConstraintTDq, nq_, "d(C_q^T w)/dq");
-    b_mass_ = asm_.AddBlock(sys_.pattern(Matrix::kMass), 0, 0);
-    b_kma_ = asm_.AddBlock(sys_.pattern(Matrix::kMassTimesAccDq), 0, 0);
-    b_kc_ = asm_.AddBlock(sys_.pattern(Matrix::kConstraintTDq), 0, 0);
-    b_qq_ = asm_.AddBlock(sys_.pattern(Matrix::kForceDq), 0, 0);
-    b_qv_ = asm_.AddBlock(sys_.pattern(Matrix::kForceDv), 0, 0);
-    b_cqt_ = asm_.AddBlock(sys_.pattern(Matrix::kConstraintDq), 0, nq_, /*transpose=*/true);
-    b_cq_ = asm_.AddBlock(sys_.pattern(Matrix::kConstraintDq), nq_, 0);
-    std::vector<std::pair<int, int>> diag;
-    for (int i = 0; i < nq_ + nc_; ++i) diag.push_back({i, i});
-    b_diag_ = asm_.AddEntries(diag);
-    asm_.Finalize(nq_ + nc_, nq_ + nc_);
-    jac_.assign(asm_.pattern().nnz(), 0.0);
-    klu_ = std::make_unique<KluSolver>(asm_.pattern());
+    // Buffers of the matrices the residual needs (the patterns were checked by newton_),
+    // and the Newton matrix with its factorisation.
+    for (Matrix m : {Matrix::kMass, Matrix::kConstraintDq})
+      mat_[static_cast<int>(m)].assign(sys_.pattern(m).nnz(), 0.0);
+    jac_.assign(newton_.pattern().nnz(), 0.0);
+    klu_ = std::make_unique<KluSolver>(newton_.pattern());
 
     const int n = nq_ + nc_;
     for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_})
@@ -309,7 +348,7 @@ class HhtIntegrator final : public Integrator {
   const Summary& summary() const override { return summary_; }
   std::string name() const override {
     return std::string(opt_.modified ? "HHT (modified for Euler parameters)" : "HHT") +
-           ", alpha = " + std::to_string(alpha_) + ", form " + HhtFormName(opt_.form);
+           ", alpha = " + Num(alpha_) + ", form " + HhtFormName(opt_.form);
   }
 
  private:
@@ -449,32 +488,13 @@ class HhtIntegrator final : public Integrator {
 
   // Evaluates the Jacobians at the current iterate and factorises the Newton matrix.
   int NewtonMatrix(double t1, double h, std::string* error) {
-    EvalInput in;
-    in.t = t1;
-    in.q = qn_.data();
-    in.v = vn_.data();
-    in.a = an_.data();
-    in.w = lamn_.data();
-    EvalOutput out;
-    for (int m = 0; m < kNumMatrices; ++m)
-      if (m != static_cast<int>(Matrix::kConstraintVelDq)) out.matrix[m] = mat_[m].data();
-    const int rc = sys_.Evaluate(in, out);
+    const int rc = newton_.Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(),
+                                    jac_.data());
     ++summary_.jacobian_evaluations;
     if (rc != 0) {
       *error = sys_.last_error();
       return rc;
     }
-    auto M = [&](Matrix m) { return mat_[static_cast<int>(m)].data(); };
-    const double s = 1 / (1 + alpha_), bh2 = beta_ * h * h;
-    asm_.SetZero(jac_.data());
-    asm_.Accumulate(b_mass_, M(Matrix::kMass), s, jac_.data());
-    asm_.Accumulate(b_kma_, M(Matrix::kMassTimesAccDq), equilibrium_ ? bh2 : bh2 * s,
-                    jac_.data());
-    asm_.Accumulate(b_kc_, M(Matrix::kConstraintTDq), bh2, jac_.data());
-    asm_.Accumulate(b_qq_, M(Matrix::kForceDq), -bh2, jac_.data());
-    asm_.Accumulate(b_qv_, M(Matrix::kForceDv), -gamma_ * h, jac_.data());
-    asm_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), equilibrium_ ? s : 1.0, jac_.data());
-    asm_.Accumulate(b_cq_, M(Matrix::kConstraintDq), 1.0, jac_.data());
     ++summary_.factorizations;
     if (!klu_->Factor(jac_.data(), error)) return 1;
     jacobian_valid_ = true;
@@ -648,10 +668,8 @@ class HhtIntegrator final : public Integrator {
   double alpha_ = 0, beta_ = 0, gamma_ = 0;
   bool equilibrium_ = true;  // opt_.form == kEquilibrium
   double mix_ = 1;           // 1 + alpha (equilibrium form) or 1
-  std::vector<double> mat_[kNumMatrices];
-  BlockAssembler asm_;
-  int b_mass_ = 0, b_kma_ = 0, b_kc_ = 0, b_qq_ = 0, b_qv_ = 0, b_cqt_ = 0, b_cq_ = 0,
-      b_diag_ = 0;
+  HhtNewtonMatrix newton_;
+  std::vector<double> mat_[kNumMatrices];  // M and C_q of the residual
   std::vector<double> jac_;
   std::unique_ptr<KluSolver> klu_;
   // Work vectors (sized in the constructor; no allocation while stepping).

@@ -6,8 +6,10 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "dae/integrator.h"
+#include "dae/sparse.h"
 
 namespace mbdae::dae {
 
@@ -62,5 +64,40 @@ const char* HhtFormName(HhtOptions::Form form);
 bool ParseHhtForm(const std::string& name, HhtOptions::Form* form);
 
 std::unique_ptr<Integrator> MakeHhtIntegrator(MechanicalSystem& system, const HhtOptions& options);
+
+// The Newton matrix of an HHT step of size h (docs/hht.md), the one the integrator
+// factorises, at the iterate (t_{n+1}, q_{n+1}, v_{n+1}, a_{n+1}, lambda_{n+1}):
+//   kEquilibrium: [ M/(1+alpha) + beta h^2 (K_Ma + K_C - Q_q) - gamma h Q_v , C_q^T/(1+alpha) ]
+//                 [ C_q                                                    , 0               ]
+//   kNegrut:      [ M/(1+alpha) + beta h^2 (K_Ma/(1+alpha) + K_C - Q_q) - gamma h Q_v , C_q^T ]
+//                 [ C_q                                                               , 0     ]
+// with beta = (1 - alpha)^2 / 4, gamma = 1/2 - alpha, K_Ma = d(M a)/dq, K_C =
+// d(C_q^T lambda)/dq, Q_q = dQ/dq, Q_v = dQ/dv. It is the derivative of the step's
+// residual (r_q, r_c) with respect to (a_{n+1}, lambda_{n+1}) through Newmark's formulas
+// (dq_{n+1}/da_{n+1} = (1 + alpha) beta h^2 I in the equilibrium form, beta h^2 I in the
+// negrut form; dv/da likewise with gamma h), exact for the classical scheme and its
+// first-order approximation for the modified one. The pattern, (nq + nc) square, is fixed
+// at construction and holds the whole diagonal (zeros included, for the factorisation).
+// Uses only options.alpha and options.form.
+class HhtNewtonMatrix {
+ public:
+  // Throws std::invalid_argument if the system's patterns are invalid or of the wrong size.
+  HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options);
+
+  const CscPattern& pattern() const { return assembler_.pattern(); }
+  // Evaluates the system's matrices at (t, q, v, a, lambda) and writes the matrix for
+  // step h into values (pattern().nnz(), pattern order). Returns the system's Evaluate
+  // code (0 success; values are then complete).
+  int Assemble(double t, double h, const double* q, const double* v, const double* a,
+               const double* lambda, double* values);
+
+ private:
+  MechanicalSystem& system_;
+  double alpha_ = 0, beta_ = 0, gamma_ = 0;
+  bool equilibrium_ = true;
+  BlockAssembler assembler_;
+  int b_mass_ = 0, b_kma_ = 0, b_kc_ = 0, b_qq_ = 0, b_qv_ = 0, b_cqt_ = 0, b_cq_ = 0;
+  std::vector<double> mat_[kNumMatrices];  // the system's matrices (all but kConstraintVelDq)
+};
 
 }  // namespace mbdae::dae

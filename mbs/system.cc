@@ -978,6 +978,9 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   if (out.constraint) std::fill(out.constraint, out.constraint + nc, 0.0);
   if (out.constraint_dt) std::fill(out.constraint_dt, out.constraint_dt + nc, 0.0);
   if (out.acc_rhs) std::fill(out.acc_rhs, out.acc_rhs + nc, 0.0);
+  if (out.force_quadratic_velocity)
+    std::fill(out.force_quadratic_velocity, out.force_quadratic_velocity + nq, 0.0);
+  if (out.constraint_dtt) std::fill(out.constraint_dtt, out.constraint_dtt + nc, 0.0);
   bool spring_ok = true;
   int bad_spring = -1;
   std::string law_error;  // first error of a user force function (no allocation if none)
@@ -1014,10 +1017,15 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
         for (int r = 0; r < 4; ++r) sMa.Add(o + 3 + r, o + 3 + c, K(r, c));
     }
     const Vec3 ge = Gd * e;  // = -G e' = -omega'/2
-    if (out.force) {
-      Eigen::Map<Vec3>(out.force + o) += body.mass * model.gravity;
-      const Vec3 jge = J * ge;
-      Eigen::Map<Quat>(out.force + o + 3) += 8 * (Gd.transpose() * jge);
+    if (out.force || out.force_quadratic_velocity) {
+      // Q_v = 8 G(e')^T J G(e') e = dT/de - (dM/dt) e' (Lagrange's equations with
+      // T = 2 e'^T G^T J G e'; the translational part has none).
+      const Quat qv = 8 * (Gd.transpose() * (J * ge));
+      if (out.force) {
+        Eigen::Map<Vec3>(out.force + o) += body.mass * model.gravity;
+        Eigen::Map<Quat>(out.force + o + 3) += qv;
+      }
+      if (out.force_quadratic_velocity) Eigen::Map<Quat>(out.force_quadratic_velocity + o + 3) = qv;
     }
     if (sKq.active()) {
       const Mat4 K = 8 * XtJY(Gd, J, Gd);
@@ -1232,6 +1240,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
         c -= f;
         if (mc.wrap) c = std::remainder(c, 2 * M_PI);
         if (out.constraint_dt) out.constraint_dt[row] = -f1;
+        if (out.constraint_dtt) out.constraint_dtt[row] = -f2;
         gamma += f2;
       }
       if (out.constraint) out.constraint[row] = c;

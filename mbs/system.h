@@ -33,10 +33,13 @@ class MultibodySystem final : public dae::MechanicalSystem {
   // in the joints' order, then the normalisations.
   // Force values over t, measures and splines are evaluated at every Evaluate (measures
   // with offset_initial minus their value at the file's initial state); motion joints
-  // give C = m(q) - f(t) (angles modulo 2 pi) with C_t = -f'(t), gamma = -v^T H v + f''(t);
-  // gear joints (m2 - m2_0) - r (m1 - m1_0), angles continued across +-pi from the
-  // previous evaluation (so Evaluate keeps that much state). JointReaction gives zeros for
-  // motion and gear joints (their multiplier is the driving effort).
+  // give C = m(q) - f(t) (angles modulo 2 pi) with C_t = -f'(t), C_tt = -f''(t),
+  // gamma = -v^T H v + f''(t); gear joints (m2 - m2_0) - r (m1 - m1_0), angles continued
+  // across +-pi from the previous evaluation (so Evaluate keeps that much state). No
+  // equation has a mixed term (C_qt = 0), so d(C_q)/dt q' = -gamma - C_tt. Evaluate fills
+  // the optional outputs force_quadratic_velocity (per body Q_v = 8 G(e')^T J G(e') e in
+  // the Euler parameters, zero in the positions) and constraint_dtt. JointReaction gives
+  // zeros for motion and gear joints (their multiplier is the driving effort).
   // Bushing and user elements (mbs/bushing.h, mbs/user_force.h) get the marker
   // kinematics of i and j (p = r + A s, R = A(e/|e|) O, v, w) and their 6x24 Jacobian is
   // chained into dQ/dq and dQ/dv; bushing values are evaluated from the parameters at

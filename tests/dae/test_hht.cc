@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <iostream>
 #include <random>
 
 #include "dae/hht.h"
@@ -141,6 +142,83 @@ TEST(FreeBodySystem, DerivativesMatchFiniteDifferences) {
     }
     // gamma = -(C_q v)_q v.
     EXPECT_NEAR(o.gam[0], -(Kcv * vv)(0), 1e-13);
+  }
+}
+
+// HhtNewtonMatrix (the integrator's Newton matrix) is the derivative of the step's
+// residual with respect to (a_{n+1}, lambda_{n+1}) through Newmark's formulas, in both
+// forms: central differences of the residual written out here from the definitions.
+TEST(HhtNewtonMatrix, IsTheDerivativeOfTheStepResidual) {
+  FreeBodySystem sys(2.0, {0.7, 1.3, 2.1}, {0.1, -0.2, 0.3}, {0.4, -0.5, 0.6});
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const int nq = 7, nc = 1, n = nq + nc;
+  for (HhtOptions::Form form : {HhtOptions::Form::kEquilibrium, HhtOptions::Form::kNegrut}) {
+    for (double alpha : {0.0, -0.2}) {
+      SCOPED_TRACE(std::string(HhtFormName(form)) + ", alpha " + std::to_string(alpha));
+      HhtOptions opt;
+      opt.form = form;
+      opt.alpha = alpha;
+      HhtNewtonMatrix newton(sys, opt);
+      ASSERT_EQ(newton.pattern().rows, n);
+      ASSERT_EQ(newton.pattern().cols, n);
+      for (int i = 0; i < n; ++i) EXPECT_GE(newton.pattern().find(i, i), 0);  // full diagonal
+      const bool eq = form == HhtOptions::Form::kEquilibrium;
+      const double beta = (1 - alpha) * (1 - alpha) / 4, gamma = 0.5 - alpha;
+      const double mix = eq ? 1 + alpha : 1.0, h = 0.05, t = 0.3;
+      std::vector<double> q(nq), v(nq), a(nq), lam(nc);
+      for (auto* x : {&q, &v, &a, &lam})
+        for (double& y : *x) y = u(rng);
+      std::vector<double> values(newton.pattern().nnz());
+      ASSERT_EQ(newton.Assemble(t, h, q.data(), v.data(), a.data(), lam.data(), values.data()), 0);
+      const Eigen::MatrixXd J = Dense(newton.pattern(), values);
+      // The residual at (a + da, lambda + dl), with q, v moved by Newmark's formulas
+      // (terms of the previous step are constants and left out).
+      auto residual = [&](const Eigen::VectorXd& x) {
+        std::vector<double> q1(nq), v1(nq), a1(nq), Q(nq), C(nc),
+            M(sys.pattern(Matrix::kMass).nnz()), Cq(sys.pattern(Matrix::kConstraintDq).nnz());
+        for (int i = 0; i < nq; ++i) {
+          q1[i] = q[i] + mix * beta * h * h * x[i];
+          v1[i] = v[i] + mix * gamma * h * x[i];
+          a1[i] = a[i] + x[i];
+        }
+        EvalInput in;
+        in.t = t;
+        in.q = q1.data();
+        in.v = v1.data();
+        EvalOutput out;
+        out.force = Q.data();
+        out.constraint = C.data();
+        out[Matrix::kMass] = M.data();
+        out[Matrix::kConstraintDq] = Cq.data();
+        EXPECT_EQ(sys.Evaluate(in, out), 0);
+        const Eigen::MatrixXd Md = Dense(sys.pattern(Matrix::kMass), M);
+        const Eigen::MatrixXd Cd = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
+        Eigen::VectorXd l1(nc);
+        for (int j = 0; j < nc; ++j) l1[j] = lam[j] + x[nq + j];
+        const Eigen::Map<const Eigen::VectorXd> av(a1.data(), nq), Qv(Q.data(), nq);
+        const Eigen::VectorXd F = Cd.transpose() * l1 - Qv;
+        Eigen::VectorXd r(n);
+        r.head(nq) = eq ? Eigen::VectorXd((Md * av + F) / (1 + alpha))
+                        : Eigen::VectorXd(Md * av / (1 + alpha) + F);
+        for (int j = 0; j < nc; ++j) r[nq + j] = C[j] / (mix * beta * h * h);
+        return r;
+      };
+      // The residual is nearly linear in (da, dl) (the state moves by h^2 da): a large
+      // step keeps the rounding of C / (beta h^2) small.
+      Eigen::MatrixXd J_fd(n, n);
+      const double eps = 1e-3;
+      for (int k = 0; k < n; ++k) {
+        Eigen::VectorXd xp = Eigen::VectorXd::Zero(n), xm = Eigen::VectorXd::Zero(n);
+        xp[k] = eps;
+        xm[k] = -eps;
+        J_fd.col(k) = (residual(xp) - residual(xm)) / (2 * eps);
+      }
+      const double err = (J - J_fd).cwiseAbs().maxCoeff() / J_fd.cwiseAbs().maxCoeff();
+      std::cout << "  relative error of the HHT Newton matrix: " << err << "\n";
+      EXPECT_LT(err, 1e-8);
+      EXPECT_GT(J_fd.cwiseAbs().maxCoeff(), 0.1);
+    }
   }
 }
 

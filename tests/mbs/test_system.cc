@@ -3,6 +3,7 @@
 // type; patterns; repeatability; measures; joint reactions; energies.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <iostream>
@@ -12,6 +13,7 @@
 #include <cstdlib>
 #include <random>
 
+#include "dae/consistent.h"
 #include "mbs/kinematics.h"
 #include "mbs/system.h"
 #include "tests/support/random_models.h"
@@ -32,6 +34,7 @@ using testing::RandomState;
 // Everything Evaluate can produce at one point.
 struct Outputs {
   VectorXd force, constraint, constraint_dt, acc_rhs;
+  VectorXd force_quadratic_velocity, constraint_dtt;  // the optional outputs
   std::vector<double> matrix[dae::kNumMatrices];
   int code = 0;
 };
@@ -44,6 +47,8 @@ Outputs EvaluateAll(MultibodySystem& sys, const double* q, const double* v, cons
   o.constraint.setZero(nc);
   o.constraint_dt.setZero(nc);
   o.acc_rhs.setZero(nc);
+  o.force_quadratic_velocity.setConstant(nq, 12345.0);  // must be overwritten
+  o.constraint_dtt.setConstant(nc, 12345.0);
   dae::EvalInput in;
   in.q = q; in.v = v; in.a = a; in.w = w;
   in.t = t;
@@ -52,6 +57,8 @@ Outputs EvaluateAll(MultibodySystem& sys, const double* q, const double* v, cons
   out.constraint = o.constraint.data();
   out.constraint_dt = o.constraint_dt.data();
   out.acc_rhs = o.acc_rhs.data();
+  out.force_quadratic_velocity = o.force_quadratic_velocity.data();
+  out.constraint_dtt = o.constraint_dtt.data();
   for (int m = 0; m < dae::kNumMatrices; ++m) {
     // Fill with garbage: Evaluate must overwrite every entry.
     o.matrix[m].assign(sys.pattern(static_cast<Matrix>(m)).nnz(), 12345.0);
@@ -244,6 +251,32 @@ TEST(MultibodySystem, DerivativesMatchFiniteDifferences) {
                                   DenseOf(sys, at_q(qm), Matrix::kConstraintDq) * v) / (2 * h) -
                                 Ctt_fd;
       EXPECT_LT(RelativeError(o.acc_rhs, gamma_fd, "gamma"), kTol);
+      EXPECT_LT(RelativeError(o.constraint_dtt, Ctt_fd, "C_tt"), kTol);
+      // The identity the C API uses: d(C_q)/dt v = d(C_q v + C_t)/dq v = -gamma - C_tt.
+      EXPECT_LT(RelativeError(DenseOf(sys, o, Matrix::kConstraintVelDq) * v,
+                              -o.acc_rhs - o.constraint_dtt, "d(C_q)/dt v = -gamma - C_tt"),
+                1e-12);
+      // Q_v = dT/dq - (dM/dt) v (Lagrange's equations), from the kinetic energy and the
+      // mass matrix along q + s v; and it is quadratic in v.
+      {
+        const MatrixXd dTdq = FiniteDifferences(
+            [&](const std::vector<double>& q) -> VectorXd {
+              return VectorXd::Constant(1, sys.KineticEnergy(q.data(), s.v.data()));
+            },
+            s.q);
+        const VectorXd Mdot_v = (DenseOf(sys, at_q(qp), Matrix::kMass) * v -
+                                 DenseOf(sys, at_q(qm), Matrix::kMass) * v) / (2 * h);
+        const VectorXd qv_ref = dTdq.transpose() - Mdot_v;
+        EXPECT_LT(RelativeError(o.force_quadratic_velocity, qv_ref, "Q_v vs dT/dq - dM/dt v"),
+                  kTol);
+        EXPECT_GT(o.force_quadratic_velocity.cwiseAbs().maxCoeff(), 1e-3);
+        std::vector<double> v2(s.v);
+        for (double& x : v2) x *= 2;
+        const Outputs o2 = EvaluateAll(sys, s.q.data(), v2.data(), s.a.data(), s.w.data(), t);
+        EXPECT_LT(RelativeError(o2.force_quadratic_velocity, 4 * o.force_quadratic_velocity,
+                                "Q_v(2 v) = 4 Q_v(v)"),
+                  1e-12);
+      }
       if (!opt.motion_gear) EXPECT_EQ(o.constraint_dt.cwiseAbs().maxCoeff(), 0.0);
       else EXPECT_GT(o.constraint_dt.cwiseAbs().maxCoeff(), 0.0);
       // dQ/dt (force values over t), against the time derivative of the force values
@@ -260,6 +293,41 @@ TEST(MultibodySystem, DerivativesMatchFiniteDifferences) {
 
 // Same numbers from a second call, and after a call at another state with only some
 // outputs requested (nothing may be left over from an earlier call).
+// The view of the kept equations (dae::KeepConstraints, what the driver and the C API
+// integrate) passes the optional outputs through: Q_v whole, C_tt of the kept rows.
+TEST(MultibodySystem, KeptViewPassesTheOptionalOutputs) {
+  std::mt19937 rng(4);
+  RandomModelOptions opt;
+  opt.motion_gear = true;
+  const Model model = RandomModel(rng, opt);
+  MultibodySystem sys(model);
+  const int nq = sys.num_coordinates(), nc = sys.num_constraints();
+  std::vector<int> kept;
+  for (int r = 0; r < nc; r += 2) kept.push_back(r);
+  for (int r = 0; r < nc; ++r)
+    if (sys.constraint_names()[r].find(".motion") != std::string::npos && r % 2 == 1)
+      kept.insert(std::lower_bound(kept.begin(), kept.end(), r), r);
+  auto view = dae::KeepConstraints(sys, kept);
+  const RandomState s = MakeRandomState(rng, model, nc);
+  const Outputs full = EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data(), 0.6);
+  VectorXd qv = VectorXd::Constant(nq, 7.0), ctt = VectorXd::Constant(view->num_constraints(), 7.0);
+  dae::EvalInput in;
+  in.t = 0.6;
+  in.q = s.q.data();
+  in.v = s.v.data();
+  dae::EvalOutput out;
+  out.force_quadratic_velocity = qv.data();
+  out.constraint_dtt = ctt.data();
+  ASSERT_EQ(view->Evaluate(in, out), 0);
+  EXPECT_EQ(qv, full.force_quadratic_velocity);
+  double largest = 0;
+  for (size_t k = 0; k < kept.size(); ++k) {
+    EXPECT_EQ(ctt[k], full.constraint_dtt[kept[k]]) << sys.constraint_names()[kept[k]];
+    largest = std::max(largest, std::abs(ctt[k]));
+  }
+  EXPECT_GT(largest, 1e-3);  // a motion joint with a time term is among the kept rows
+}
+
 TEST(MultibodySystem, EvaluateIsRepeatable) {
   std::mt19937 rng(11);
   const Model model = RandomModel(rng);
