@@ -84,7 +84,7 @@ typedef enum {
 /* MULTIPLIERS and REDUNDANT assemble the model if needed. */
 mbdae_status mbdae_count(mbdae_model* model, mbdae_kind kind, int* count);
 /* The name of item `index` (the pointer stays valid until the model is freed or
- * re-assembled). */
+ * re-assembled, or a parameter is set). */
 mbdae_status mbdae_name(mbdae_model* model, mbdae_kind kind, int index, const char** name);
 /* The index of the item called `name`; MBDAE_ERROR_ARGUMENT if there is none. */
 mbdae_status mbdae_find(mbdae_model* model, mbdae_kind kind, const char* name, int* index);
@@ -106,8 +106,11 @@ mbdae_status mbdae_set_spline_points(mbdae_model* model, int index, const double
 /* Simulation settings, with the names and value syntax of the model file's `simulation:`
  * block: "t_end", "output_step", "integrator" (hht|ida), "hht.alpha", "hht.step",
  * "hht.adaptive" (true|false), "hht.tolerance", "hht.modified", "hht.form"
- * (equilibrium|negrut), "ida.rtol", "ida.atol". Takes effect at the next assembly
- * (set before solving). */
+ * (equilibrium|negrut), "ida.rtol", "ida.atol". Numbers are plain numbers (no
+ * expressions). Validated as the program validates its options: an unknown key is
+ * MBDAE_ERROR_ARGUMENT, a bad value MBDAE_ERROR_INPUT (the old value stays). Takes
+ * effect at the next assembly (set before solving): like a parameter, it marks the
+ * model for re-assembly. */
 mbdae_status mbdae_set_option(mbdae_model* model, const char* key, const char* value);
 /* The current value as text into buf (size bytes, NUL-terminated). */
 mbdae_status mbdae_get_option(mbdae_model* model, const char* key, char* buf, size_t size);
@@ -119,20 +122,31 @@ mbdae_status mbdae_get_option(mbdae_model* model, const char* key, char* buf, si
  * row at t = 0 and makes that the current state. */
 mbdae_status mbdae_assemble(mbdae_model* model);
 /* Integrates from the current state to t_end (assembling first if needed), storing a row
- * at every output time (0, output_step, 2 output_step, ..., t_end). */
+ * at every output time (0, output_step, 2 output_step, ..., t_end). Nothing to do (MBDAE_OK)
+ * when the current time is t_end or later. A solver failure is MBDAE_ERROR_SOLVER with
+ * the reason; the rows so far stay and the current state is the last one reached (the
+ * next solve call restarts the integrator from it). */
 mbdae_status mbdae_solve(mbdae_model* model);
 /* Integrates from the current state to t (> current time, <= t_end is not required),
  * storing a row at every output time passed on the way (and none at t unless t is one).
- * Calling it for each output time gives bitwise the same rows as one mbdae_solve. */
+ * Calling it for each output time gives bitwise the same rows as one mbdae_solve. A t
+ * within 1e-9 output_step of an output time is that output time. After t_end the output
+ * times go on every output_step (t_end + output_step, ...). */
 mbdae_status mbdae_solve_to(mbdae_model* model, double t);
 
 /* The current state: time, q, v, a (each nq = MBDAE_COORDINATES), lambda (nm =
- * MBDAE_MULTIPLIERS). Any pointer may be NULL. */
+ * MBDAE_MULTIPLIERS). Any pointer may be NULL (its size is then not checked). Assembles
+ * the model if needed. */
 mbdae_status mbdae_get_state(mbdae_model* model, double* t, double* q, double* v, double* a,
                              double* lambda, int nq, int nm);
 /* Sets the current state and restarts the integrator from it (a co-simulation host's
  * correction). a and lambda may be NULL: they are then computed from the equations of
- * motion at (t, q, v). q and v are used as given (not projected). */
+ * motion at (t, q, v). q and v are used as given (not projected). Stored rows after t are
+ * dropped (they belong to the history replaced); the next row is stored at the first
+ * output time after t, with measure angles unwrapped from the last row kept. The restart
+ * resets the integrator's history (IDA's order and step, HHT's acceleration-like
+ * variables): a continuation from a saved state agrees with the uninterrupted run to the
+ * integrator's accuracy, not bitwise. */
 mbdae_status mbdae_set_state(mbdae_model* model, double t, const double* q, const double* v,
                              const double* a, const double* lambda, int nq, int nm);
 
@@ -151,7 +165,11 @@ typedef enum {
 
 /* Row `row` (0 .. MBDAE_OUTPUTS - 1) of quantity `what` into out (n values). */
 mbdae_status mbdae_get_output(mbdae_model* model, int row, mbdae_output what, double* out, int n);
-/* Writes the stored rows as a results file (docs/results-file.md). */
+/* Writes the stored rows as a results file (docs/results-file.md), with the datasets and
+ * attributes `mbdae simulate` writes (a model solved with mbdae_solve gives the program's
+ * file, run times aside). `status` is "done" once t_end is stored, "failed" after a solver
+ * failure, else "running" (a run a host is still stepping); the counters add up every
+ * integrator of the run (set_state and failures restart it). */
 mbdae_status mbdae_write_results(mbdae_model* model, const char* path);
 
 /* ---- Measures at the current state ----------------------------------------------------- */
