@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <new>
 #include <string>
@@ -602,6 +603,9 @@ mbdae_status mbdae_model_from_file(const char* path, mbdae_model** model) {
     NotNull(path, "path");
     NotNull(model, "model");
     {
+      std::error_code ignored;
+      if (std::filesystem::is_directory(path, ignored))
+        throw ApiError(MBDAE_ERROR_IO, std::string(path) + ": cannot read the file: it is a directory");
       std::ifstream in(path);
       if (!in)
         throw ApiError(MBDAE_ERROR_IO, std::string(path) + ": cannot open the file: " +

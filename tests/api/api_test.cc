@@ -145,6 +145,9 @@ TEST(ApiErrors, MissingFileIsAnIoErrorNamingThePath) {
   EXPECT_NE(std::string(mbdae_last_error()).find("/nonexistent/model.yaml"), std::string::npos)
       << mbdae_last_error();
   EXPECT_EQ(m, reinterpret_cast<mbdae_model*>(0x1));  // output untouched
+  const std::string dir = ::testing::TempDir();
+  EXPECT_EQ(mbdae_model_from_file(dir.c_str(), &m), MBDAE_ERROR_IO);
+  EXPECT_EQ(std::string(mbdae_last_error()), dir + ": cannot read the file: it is a directory");
 }
 
 TEST(ApiErrors, BadModelNamesFileAndLine) {
