@@ -237,33 +237,27 @@ void Assemble(mbdae_model& m) {
   m.next_output = 1;
 }
 
+// to += the step and Newton counters of `from`.
+void AddCounters(const dae::Summary& from, dae::Summary* to) {
+  to->steps_accepted += from.steps_accepted;
+  to->steps_rejected += from.steps_rejected;
+  to->newton_iterations += from.newton_iterations;
+  to->jacobian_evaluations += from.jacobian_evaluations;
+  to->factorizations += from.factorizations;
+  to->residual_evaluations += from.residual_evaluations;
+  to->newton_noise_stops += from.newton_noise_stops;
+}
+
 // Adds the counters of the current integrator to finished_counters and drops it.
 void FinishIntegrator(mbdae_model& m) {
   if (!m.integrator) return;
-  const dae::Summary& s = m.integrator->summary();
-  dae::Summary& f = m.finished_counters;
-  f.steps_accepted += s.steps_accepted;
-  f.steps_rejected += s.steps_rejected;
-  f.newton_iterations += s.newton_iterations;
-  f.jacobian_evaluations += s.jacobian_evaluations;
-  f.factorizations += s.factorizations;
-  f.residual_evaluations += s.residual_evaluations;
-  f.newton_noise_stops += s.newton_noise_stops;
+  AddCounters(m.integrator->summary(), &m.finished_counters);
   m.integrator.reset();
 }
 
 dae::Summary Counters(const mbdae_model& m) {
   dae::Summary c = m.finished_counters;
-  if (m.integrator) {
-    const dae::Summary& s = m.integrator->summary();
-    c.steps_accepted += s.steps_accepted;
-    c.steps_rejected += s.steps_rejected;
-    c.newton_iterations += s.newton_iterations;
-    c.jacobian_evaluations += s.jacobian_evaluations;
-    c.factorizations += s.factorizations;
-    c.residual_evaluations += s.residual_evaluations;
-    c.newton_noise_stops += s.newton_noise_stops;
-  }
+  if (m.integrator) AddCounters(m.integrator->summary(), &c);
   return c;
 }
 
