@@ -23,6 +23,7 @@
 #include "dae/consistent.h"
 #include "dae/integrator.h"
 #include "io/results_file.h"
+#include "mbs/measure_kinematics.h"
 #include "mbs/model.h"
 #include "mbs/system.h"
 
@@ -157,7 +158,10 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
                                                 const mbs::SimulationSettings& settings);
 
 // The quantities of one output row beyond the state: body data, measures (angles
-// unwrapped across the rows, offset_initial taken from the first row), joint reactions,
+// unwrapped across the rows: the turn is chosen nearest to the angle predicted from the
+// previous row by the trapezoidal rule on the angle's rate at both rows, so that rows
+// more than half a turn apart stay continuous while the rate varies slowly between
+// them; offset_initial taken from the first row), joint reactions,
 // force element actions, energies and constraint violations. Workspaces are allocated
 // once; Compute does not allocate. References `model` and `asmb`, which must outlive it.
 class OutputRowBuilder {
@@ -185,6 +189,13 @@ class OutputRowBuilder {
   int nq_, nc_full_, nc_, nb_, nm_, nj_, nf_;
   std::vector<double> lambda_full_, body_, measures_, raw_, previous_, initial_, joints_,
       forces_, c_, cdt_, cv_, cq_;
+  // Rotational position measures: index, the definition of the angle's time derivative,
+  // its value at the previous row.
+  std::vector<int> angle_measures_;
+  std::vector<mbs::MeasureDef> rate_defs_;
+  std::vector<double> previous_rate_;
+  double previous_t_ = 0;
+  bool have_rates_ = false;  // previous_rate_ and previous_t_ belong to the previous row
   bool first_ = true;
   io::ResultsRow row_;
 };

@@ -96,6 +96,33 @@ TEST(Simulate, PendulumRunsToTheEndWithSmallViolations) {
   std::remove(so.results_path.c_str());
 }
 
+// A body spinning at 10 rad/s about z, output rows 0.5 s apart (5 rad, more than half a
+// turn): the angle is continued with the rate (trapezoidal prediction), so it reads
+// omega t; unwrapping to the nearest turn alone would read 5 - 2 pi, 10 - 4 pi, ...
+TEST(OutputRowBuilder, AnglesStayContinuousWhenRowsAreMoreThanHalfATurnApart) {
+  const mbs::Model model = mbs::LoadModelFromString(
+      "format: 1\n"
+      "bodies:\n"
+      "  - {name: rotor, mass: 1, inertia: [1, 1, 1], position: [0, 0, 0],\n"
+      "     orientation: [1, 0, 0, 0], angular_velocity: [0, 0, 10]}\n"
+      "measures:\n"
+      "  - {name: angle, type: rotational, i: rotor.cm, j: ground.O, axis: z}\n",
+      "spin.yaml");
+  Assembly a = Assemble(model);
+  OutputRowBuilder rows(model, a);
+  const double omega = 10;
+  dae::State x = a.x0;
+  for (int k = 0; k <= 8; ++k) {
+    const double t = 0.5 * k, c = std::cos(omega * t / 2), s = std::sin(omega * t / 2);
+    x.t = t;
+    x.q[3] = c, x.q[4] = 0, x.q[5] = 0, x.q[6] = s;
+    x.v[3] = -omega / 2 * s, x.v[4] = 0, x.v[5] = 0, x.v[6] = omega / 2 * c;
+    for (int i = 3; i < 7; ++i) x.a[i] = -omega * omega / 4 * x.q[i];
+    const io::ResultsRow& row = rows.Compute(x);
+    EXPECT_NEAR(row.measures[0], omega * t, 1e-9) << "t = " << t;
+  }
+}
+
 TEST(Simulate, FailureKeepsRowsAndSaysWhy) {
   mbs::Model model = mbs::LoadModel(ModelPath("pendulum.yaml"));
   SettingsOverrides o;
