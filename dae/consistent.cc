@@ -235,6 +235,11 @@ class KeptConstraints final : public MechanicalSystem {
     for (size_t k = 0; k < kept_.size(); ++k) new_row[kept_[k]] = static_cast<int>(k);
     Filter(base_.pattern(Matrix::kConstraintDq), new_row, &cq_, &cq_map_);
     Filter(base_.pattern(Matrix::kConstraintVelDq), new_row, &veldq_, &veldq_map_);
+    for (ParameterMatrix m : kRowsAreConstraints) {
+      const int i = static_cast<int>(m);
+      Filter(base_.parameter_pattern(m), new_row, &param_[i], &param_map_[i]);
+      param_full_[i].assign(base_.parameter_pattern(m).nnz(), 0.0);
+    }
     c_.assign(nc, 0.0);
     ct_.assign(nc, 0.0);
     gamma_.assign(nc, 0.0);
@@ -255,6 +260,12 @@ class KeptConstraints final : public MechanicalSystem {
     return base_.quaternion_offsets();
   }
   const char* last_error() const override { return base_.last_error(); }
+  int num_parameters() const override { return base_.num_parameters(); }
+  const CscPattern& parameter_pattern(ParameterMatrix m) const override {
+    for (ParameterMatrix r : kRowsAreConstraints)
+      if (m == r) return param_[static_cast<int>(m)];
+    return base_.parameter_pattern(m);
+  }
 
   int Evaluate(const EvalInput& in, EvalOutput& out) override {
     EvalInput bin = in;
@@ -270,6 +281,8 @@ class KeptConstraints final : public MechanicalSystem {
     if (out.constraint_dtt) bout.constraint_dtt = ctt_.data();
     if (out[Matrix::kConstraintDq]) bout[Matrix::kConstraintDq] = cq_full_.data();
     if (out[Matrix::kConstraintVelDq]) bout[Matrix::kConstraintVelDq] = veldq_full_.data();
+    for (ParameterMatrix m : kRowsAreConstraints)
+      if (out[m]) bout[m] = param_full_[static_cast<int>(m)].data();
     const int code = base_.Evaluate(bin, bout);
     if (code != 0) return code;
     for (size_t k = 0; k < kept_.size(); ++k) {
@@ -283,6 +296,11 @@ class KeptConstraints final : public MechanicalSystem {
       for (size_t k = 0; k < cq_map_.size(); ++k) dst[k] = cq_full_[cq_map_[k]];
     if (double* dst = out[Matrix::kConstraintVelDq])
       for (size_t k = 0; k < veldq_map_.size(); ++k) dst[k] = veldq_full_[veldq_map_[k]];
+    for (ParameterMatrix m : kRowsAreConstraints) {
+      const int i = static_cast<int>(m);
+      if (double* dst = out[m])
+        for (size_t k = 0; k < param_map_[i].size(); ++k) dst[k] = param_full_[i][param_map_[i][k]];
+    }
     return 0;
   }
 
@@ -308,8 +326,16 @@ class KeptConstraints final : public MechanicalSystem {
     }
   }
 
+  // The parameter matrices whose rows are constraint equations.
+  static constexpr ParameterMatrix kRowsAreConstraints[3] = {
+      ParameterMatrix::kConstraintDp, ParameterMatrix::kConstraintVelDp,
+      ParameterMatrix::kAccRhsDp};
+
   MechanicalSystem& base_;
   std::vector<int> kept_;
+  CscPattern param_[kNumParameterMatrices];
+  std::vector<int> param_map_[kNumParameterMatrices];
+  std::vector<double> param_full_[kNumParameterMatrices];
   CscPattern cq_, veldq_;
   std::vector<int> cq_map_, veldq_map_;
   std::vector<double> c_, ct_, gamma_, ctt_, w_, cq_full_, veldq_full_;

@@ -50,6 +50,7 @@
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "dae/klu_solver.h"
 
@@ -232,7 +233,7 @@ class HhtIntegrator final : public Integrator {
   void Initialize(const State& x0) override {
     if (static_cast<int>(x0.q.size()) != nq_ || static_cast<int>(x0.v.size()) != nq_ ||
         static_cast<int>(x0.a.size()) != nq_ || static_cast<int>(x0.lambda.size()) != nc_)
-      throw std::invalid_argument("HHT::Initialize: state sizes do not match the system (nq = " +
+      throw std::invalid_argument("HHT::Initialize: state sizes do not match the system (q " + std::to_string(x0.q.size()) + ", lambda " + std::to_string(x0.lambda.size()) + "; nq = " +
                                   std::to_string(nq_) + ", nc = " + std::to_string(nc_) + ")");
     state_ = x0;
     summary_ = Summary();
@@ -261,8 +262,29 @@ class HhtIntegrator final : public Integrator {
     if (!initialized_) {
       summary_.status = Summary::Status::kFailed;
       summary_.message = std::string("evaluation at the initial state failed: ") + sys_.last_error();
+      return;
     }
+    std::fill(quad_.begin(), quad_.end(), 0.0);
+    if (quad_spec_.size > 0 && !EvaluateIntegrand(quad_g_.data())) {
+      initialized_ = false;
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = "quadrature integrand failed at the initial state";
+      return;
+    }
+    if (observer_) observer_(state_, 0.0);
   }
+
+  void SetQuadrature(Quadrature quadrature) override {
+    if (quadrature.size < 0 || (quadrature.size > 0 && !quadrature.integrand))
+      throw std::invalid_argument("HHT::SetQuadrature: a positive size needs an integrand");
+    quad_spec_ = std::move(quadrature);
+    quad_.assign(quad_spec_.size, 0.0);
+    quad_g_.assign(quad_spec_.size, 0.0);
+    quad_g_new_.assign(quad_spec_.size, 0.0);
+    initialized_ = false;
+  }
+  const std::vector<double>& quadrature() const override { return quad_; }
+  void SetStepObserver(StepObserver observer) override { observer_ = std::move(observer); }
 
   bool AdvanceTo(double t_target) override {
     if (!initialized_) {
@@ -338,6 +360,15 @@ class HhtIntegrator final : public Integrator {
       }
       Accept(h, last ? t_target : state_.t + h);
       h_ = std::max(h_next, opt_.min_step);
+      if (quad_spec_.size > 0) {
+        // Trapezoidal rule over the accepted step.
+        if (!EvaluateIntegrand(quad_g_new_.data()))
+          return Fail("quadrature integrand failed at t = " + Num(state_.t));
+        for (int i = 0; i < quad_spec_.size; ++i)
+          quad_[i] += 0.5 * h * (quad_g_[i] + quad_g_new_[i]);
+        quad_g_.swap(quad_g_new_);
+      }
+      if (observer_) observer_(state_, h);
     }
     summary_.status = Summary::Status::kDone;
     summary_.message.clear();
@@ -359,6 +390,11 @@ class HhtIntegrator final : public Integrator {
     summary_.message = why;
     summary_.t_reached = state_.t;
     return false;
+  }
+
+  bool EvaluateIntegrand(double* g) {
+    return quad_spec_.integrand(state_.t, state_.q.data(), state_.v.data(), state_.a.data(),
+                                state_.lambda.data(), g) == 0;
   }
 
   // f = C_q^T lambda - Q(q, v, t). Uses the C_q buffer.
@@ -680,6 +716,9 @@ class HhtIntegrator final : public Integrator {
   State state_;
   Summary summary_;
   std::string message_;
+  Quadrature quad_spec_;
+  std::vector<double> quad_, quad_g_, quad_g_new_;  // integrals; integrand at t_n, t_{n+1}
+  StepObserver observer_;
   double h_ = 0;
   double h_prev_ = 0;  // the last accepted step (0 before the first)
   double jacobian_h_ = 0;

@@ -1,6 +1,7 @@
 #include "dae/integrator.h"
 
 #include <cstdio>
+#include <stdexcept>
 
 namespace mbdae::dae {
 
@@ -15,6 +16,25 @@ const char* StatusName(Summary::Status s) {
   return "?";
 }
 }  // namespace
+
+void Integrator::SetQuadrature(Quadrature) {
+  throw std::logic_error(name() + ": quadratures are not supported");
+}
+
+void Integrator::SetStepObserver(StepObserver) {
+  throw std::logic_error(name() + ": step observers are not supported");
+}
+
+const CscPattern& MechanicalSystem::parameter_pattern(ParameterMatrix m) const {
+  // No parameters: nq x 0 or nc x 0.
+  CscPattern& p = no_parameters_[static_cast<int>(m)];
+  const bool constraint_rows = m == ParameterMatrix::kConstraintDp ||
+                               m == ParameterMatrix::kConstraintVelDp ||
+                               m == ParameterMatrix::kAccRhsDp;
+  p.rows = constraint_rows ? num_constraints() : num_coordinates();
+  p.cols = 0;
+  return p;
+}
 
 std::string Summary::BriefReport() const {
   char buf[512];

@@ -2,6 +2,7 @@
 // advanced to a requested time, with counters and the reason it stopped.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -39,9 +40,35 @@ struct Summary {
   std::string BriefReport() const;
 };
 
+// Extra quantities integrated along a run, e.g. the integral parts of objectives:
+// size integrands g(t, q, v, a, lambda) (lambda of the system's constraint equations),
+// each integrated from the initial time by the integrator's own rule (HHT: the
+// trapezoidal rule over its accepted steps; IDA: quadrature variables of IDAS, in its
+// error test). The integrand returns 0 on success, nonzero to fail the run.
+struct Quadrature {
+  int size = 0;
+  std::function<int(double t, const double* q, const double* v, const double* a,
+                    const double* lambda, double* g)>
+      integrand;
+};
+
+// Called after Initialize with (x0, 0) and after every accepted step with the new state
+// and the step size that produced it (state.t - h is the previous step's time up to
+// rounding), for callers that replay the steps (sensitivities/).
+using StepObserver = std::function<void(const State& state, double h)>;
+
 class Integrator {
  public:
   virtual ~Integrator() = default;
+
+  // Sets the quadrature before Initialize (replacing any earlier one); quadrature()
+  // then holds the integrals from the initial time to state().t. Throws
+  // std::logic_error if the integrator has no quadrature support.
+  virtual void SetQuadrature(Quadrature quadrature);
+  virtual const std::vector<double>& quadrature() const { return no_quadrature_; }
+  // Sets a step observer before Initialize (an empty function removes it). Throws
+  // std::logic_error if the integrator cannot report its steps.
+  virtual void SetStepObserver(StepObserver observer);
 
   // Starts at x0, which must be consistent (C = 0, C_q v + C_t = 0, and a, lambda the
   // solution of the acceleration-level system). Resets the counters.
@@ -55,6 +82,9 @@ class Integrator {
   virtual const State& state() const = 0;
   virtual const Summary& summary() const = 0;
   virtual std::string name() const = 0;
+
+ private:
+  std::vector<double> no_quadrature_;
 };
 
 }  // namespace mbdae::dae

@@ -25,6 +25,20 @@ enum class Matrix {
 };
 constexpr int kNumMatrices = 7;
 
+// Partial derivatives with respect to the system's parameters p (num_parameters() of
+// them, fixed for the lifetime of the object: e.g. model parameters and spline
+// ordinates chosen when the system was built), for sensitivity analysis. Each is a
+// sparse matrix with a fixed pattern (parameter_pattern), filled in place like Matrix.
+enum class ParameterMatrix {
+  kMassTimesAccDp,   // d(M(q) a)/dp at fixed q, a               nq x np
+  kForceDp,          // dQ(q, v, t)/dp at fixed q, v             nq x np
+  kConstraintTDp,    // d(C_q^T w)/dp at fixed q, w              nq x np
+  kConstraintDp,     // dC(q, t)/dp at fixed q                   nc x np
+  kConstraintVelDp,  // d(C_q v + C_t)/dp at fixed q, v          nc x np
+  kAccRhsDp          // d gamma/dp at fixed q, v (acc_rhs)       nc x np
+};
+constexpr int kNumParameterMatrices = 6;
+
 // Where to evaluate. Pointers may be null when nothing requested needs them.
 struct EvalInput {
   double t = 0;
@@ -51,7 +65,12 @@ struct EvalOutput {
   double* constraint_dtt = nullptr;  // C_tt(q, t), nc: the second partial time derivative
   double* matrix[kNumMatrices] = {nullptr, nullptr, nullptr, nullptr,
                                   nullptr, nullptr, nullptr};
+  // Parameter derivatives (only for a system with num_parameters() > 0), each by the
+  // nnz of its parameter_pattern, in pattern order.
+  double* parameter_matrix[kNumParameterMatrices] = {nullptr, nullptr, nullptr,
+                                                     nullptr, nullptr, nullptr};
   double*& operator[](Matrix m) { return matrix[static_cast<int>(m)]; }
+  double*& operator[](ParameterMatrix m) { return parameter_matrix[static_cast<int>(m)]; }
 };
 
 // Return codes of Evaluate, as in SUNDIALS: 0 success, > 0 recoverable (the
@@ -71,11 +90,18 @@ class MechanicalSystem {
 
   virtual int Evaluate(const EvalInput& in, EvalOutput& out) = 0;
 
+  // Parameters of the sensitivity analysis: their number (0: the system offers no
+  // parameter derivatives, and Evaluate ignores parameter_matrix), names for messages,
+  // and the fixed patterns of the ParameterMatrix outputs (nq x np or nc x np).
+  virtual int num_parameters() const { return 0; }
+  virtual const CscPattern& parameter_pattern(ParameterMatrix m) const;
+
   // A human-readable reason for the last non-zero return of Evaluate.
   virtual const char* last_error() const { return ""; }
 
  private:
   std::vector<int> no_quaternions_;
+  mutable CscPattern no_parameters_[kNumParameterMatrices];
 };
 
 }  // namespace mbdae::dae
