@@ -228,6 +228,7 @@ class IdaIntegrator final : public Integrator {
     matrix_.reset();
     id_.reset();
     atol_.reset();
+    yq_.reset();
     yp_.reset();
     y_.reset();
     context_.reset();
@@ -294,6 +295,18 @@ class IdaIntegrator final : public Integrator {
     if (options_.min_step > 0) Check(IDASetMinStep(mem, options_.min_step), "IDASetMinStep");
     if (options_.initial_step > 0) Check(IDASetInitStep(mem, options_.initial_step), "IDASetInitStep");
 
+    // Quadrature variables: integrals of g(t, q, v, a = v', lambda) from x0.t, in the
+    // error test with the tolerances of q and v.
+    std::fill(quad_.begin(), quad_.end(), 0.0);
+    if (quad_spec_.size > 0) {
+      yq_.reset(N_VNew_Serial(quad_spec_.size, ctx));
+      if (!yq_) throw std::runtime_error("IDA: N_VNew_Serial failed");
+      N_VConst(0.0, yq_.get());
+      Check(IDAQuadInit(mem, &IdaIntegrator::QuadratureCallback, yq_.get()), "IDAQuadInit");
+      Check(IDAQuadSStolerances(mem, options_.rtol, options_.atol), "IDAQuadSStolerances");
+      Check(IDASetQuadErrCon(mem, SUNTRUE), "IDASetQuadErrCon");
+    }
+
     state_ = x0;
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
@@ -323,6 +336,17 @@ class IdaIntegrator final : public Integrator {
     UpdateCounters();
     // On success and on failure IDA leaves (t_ret, y, y') at the last point reached.
     CopyState(t_ret);
+    if (quad_spec_.size > 0 && flag >= 0) {
+      double t_quad = t_ret;
+      const int qflag = IDAGetQuad(mem, &t_quad, yq_.get());
+      if (qflag != IDA_SUCCESS) {
+        summary_.status = Summary::Status::kFailed;
+        summary_.message = std::string("IDA: IDAGetQuad failed with ") + IDAGetReturnFlagName(qflag);
+        return false;
+      }
+      const double* yq = N_VGetArrayPointer(yq_.get());
+      std::copy(yq, yq + quad_spec_.size, quad_.begin());
+    }
     if (flag < 0) {
       std::ostringstream os;
       os << "IDA failed at t = " << ToString(t_ret) << " with " << IDAGetReturnFlagName(flag);
@@ -336,6 +360,17 @@ class IdaIntegrator final : public Integrator {
     summary_.message.clear();
     return true;
   }
+
+  void SetQuadrature(Quadrature quadrature) override {
+    if (quadrature.size < 0 || (quadrature.size > 0 && !quadrature.integrand))
+      throw std::invalid_argument("IDA::SetQuadrature: a positive size needs an integrand");
+    quad_spec_ = std::move(quadrature);
+    quad_.assign(quad_spec_.size, 0.0);
+    // Takes effect at the next Initialize.
+    mem_.reset();
+    summary_.status = Summary::Status::kNotStarted;
+  }
+  const std::vector<double>& quadrature() const override { return quad_; }
 
   const State& state() const override { return state_; }
   const Summary& summary() const override { return summary_; }
@@ -436,6 +471,27 @@ class IdaIntegrator final : public Integrator {
     return -1;
   }
 
+  static int QuadratureCallback(double t, N_Vector y, N_Vector yp, N_Vector rhs, void* user_data) {
+    auto* self = static_cast<IdaIntegrator*>(user_data);
+    try {
+      const int nq = self->ggl_.nq();
+      const double* yy = N_VGetArrayPointer(y);
+      const double* yyp = N_VGetArrayPointer(yp);
+      const int code = self->quad_spec_.integrand(t, yy, yy + nq, yyp + nq, yy + 2 * nq,
+                                                  N_VGetArrayPointer(rhs));
+      if (code != 0) {
+        self->callback_error_ = "quadrature integrand failed at t = " + ToString(t);
+        return -1;
+      }
+      return 0;
+    } catch (const std::exception& e) {
+      self->callback_error_ = std::string("exception in the quadrature integrand: ") + e.what();
+    } catch (...) {
+      self->callback_error_ = "unknown exception in the quadrature integrand";
+    }
+    return -1;
+  }
+
   static void ErrorHandler(int /*code*/, const char* module, const char* function, char* msg,
                            void* user_data) {
     auto* self = static_cast<IdaIntegrator*>(user_data);
@@ -459,10 +515,12 @@ class IdaIntegrator final : public Integrator {
   std::vector<double> values_;
   State state_;
   Summary summary_;
+  Quadrature quad_spec_;
+  std::vector<double> quad_;
   std::string callback_error_, ida_error_;
   // Destroyed in reverse order: IDA memory first, the context last.
   ContextPtr context_;
-  VectorPtr y_, yp_, id_, atol_;
+  VectorPtr y_, yp_, id_, atol_, yq_;
   MatrixPtr matrix_;
   LinearSolverPtr solver_;
   IdaMemPtr mem_;
