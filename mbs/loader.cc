@@ -123,7 +123,7 @@ class Loader {
 
     CheckKeys(root, "model",
               {"format", "name", "gravity", "parameters", "splines", "ground", "bodies", "measures",
-               "joints", "forces", "simulation"});
+               "joints", "forces", "objectives", "simulation"});
     if (const YAML::Node name = root["name"]) model_.name = String(name, "model", "name");
 
     CollectMeasureNames(root["measures"]);
@@ -137,7 +137,9 @@ class Loader {
     LoadForces(root["forces"]);
     LoadSimulation(root["simulation"]);
     return std::move(model_);
+    ResolveReactionJoints();
   }
+    LoadObjectives(root["objectives"]);
 
  private:
   // ---- locations and failures ------------------------------------------------------
@@ -275,6 +277,11 @@ class Loader {
     }
     if (me.quantity != Quantity::kPosition) {
       Fail(node, element, "'" + key + "': measure '" + name + "' is a " +
+      if (model_.measures[m].type == MeasureType::kReaction) {
+        Fail(node, element, "'" + key + "': measure '" + model_.measures[m].name +
+                                "' is a joint reaction; a force may not use reactions (that would make the "
+                                "system implicit in the multipliers, which is not supported)");
+      }
                               (me.quantity == Quantity::kVelocity ? "velocity" : "acceleration") +
                               "; a " + (rotational ? "gear" : "motion") + " constrains position-level measures only");
     }
@@ -291,6 +298,12 @@ class Loader {
     symbols.parameters = symbols_.parameters;
     symbols.reserved = symbols_.reserved;
     for (const SplineDef& sp : model_.splines) symbols.splines.push_back(sp.name);
+    if (me.type == MeasureType::kReaction) {
+      Fail(node, element, "'" + key + "': measure '" + name + "' is a joint reaction; a " +
+                              (rotational ? "gear" : "motion") +
+                              " constrains position-level kinematic measures only (a reaction would make "
+                              "the system implicit in the multipliers, which is not supported)");
+    }
     symbols.allow_time = true;
     const std::string& text = node.Scalar();
     try {
@@ -863,7 +876,26 @@ class Loader {
       if (model_.find_measure(measure.name) >= 0) Fail(m["name"], element, "duplicate measure name");
       measure.type = Enum<MeasureType>(Required(m, element, "type"), element, "type",
                                        {{"translational", MeasureType::kTranslational},
-                                        {"rotational", MeasureType::kRotational}});
+                                        {"rotational", MeasureType::kRotational},
+                                        {"reaction", MeasureType::kReaction}});
+      if (measure.type == MeasureType::kReaction) {
+        // {name, type: reaction, joint: NAME, component: x|y|z|rx|ry|rz, frame: j|world};
+        // the joint is resolved after the joints are read (ResolveReactionJoints).
+        CheckKeys(m, element, {"name", "type", "joint", "component", "frame"});
+        reaction_joints_.emplace_back(model_.measures.size(), Required(m, element, "joint"));
+        String(reaction_joints_.back().second, element, "joint");
+        enum Comp { kFx, kFy, kFz, kTx, kTy, kTz };
+        const Comp c = Enum<Comp>(Required(m, element, "component"), element, "component",
+                                  {{"x", kFx}, {"y", kFy}, {"z", kFz}, {"rx", kTx}, {"ry", kTy}, {"rz", kTz}});
+        measure.torque = c >= kTx;
+        measure.component = static_cast<Component>(static_cast<int>(c) % 3);
+        if (const YAML::Node f = m["frame"]) {
+          measure.frame = Enum<MeasureFrame>(f, element, "frame", {{"j", MeasureFrame::kJ}, {"world", MeasureFrame::kWorld}});
+        }
+        measure.i = measure.j = 0;  // set with the joint
+        model_.measures.push_back(measure);
+        continue;
+      }
       if (measure.type == MeasureType::kTranslational) {
         CheckKeys(m, element, {"name", "type", "i", "j", "component", "frame", "quantity", "offset_initial"});
         measure.component = Enum<Component>(Required(m, element, "component"), element, "component",
@@ -1143,6 +1175,81 @@ Model LoadModel(const std::string& path, const LoadOptions& options) {
   if (std::filesystem::is_directory(path, ignored)) {
     throw ModelError(SourceLocation{path, 0, 0}, "model", "cannot read the file: it is a directory");
   }
+  // Reaction measures: the joint by name, and markers i and j from it (motion joints:
+  // those of the driven measure; gear joints: those of the second measure).
+  void ResolveReactionJoints() {
+    for (const auto& [index, node] : reaction_joints_) {
+      Measure& measure = model_.measures[index];
+      const std::string element = "measure '" + measure.name + "'";
+      const std::string name = node.Scalar();
+      int joint = -1;
+      std::vector<std::string> names;
+      for (size_t k = 0; k < model_.joints.size(); ++k) {
+        names.push_back(model_.joints[k].name);
+        if (model_.joints[k].name == name) joint = static_cast<int>(k);
+      }
+      if (joint < 0) {
+        Fail(node, element, "'joint': unknown joint '" + name + "'" + Suggest(name, names) +
+                                (names.empty() ? std::string(" (the model has no joints)")
+                                               : " (joints: " + Join(names) + ")"));
+      }
+      const Joint& jt = model_.joints[joint];
+      measure.joint = joint;
+      if (jt.type == JointType::kMotion || jt.type == JointType::kGear) {
+        const Measure& driven = model_.measures[jt.measures[jt.type == JointType::kGear ? 1 : 0]];
+        measure.i = driven.i;
+        measure.j = driven.j;
+      } else {
+        measure.i = jt.i;
+        measure.j = jt.j;
+      }
+    }
+  }
+
+  // ---- objectives -------------------------------------------------------------------
+
+  void LoadObjectives(const YAML::Node& node) {
+    if (!node) return;
+    if (!node.IsSequence()) Fail(node, "model", "'objectives' must be a list, got " + Kind(node));
+    SymbolTable symbols;
+    symbols.parameters = symbols_.parameters;
+    for (const Measure& m : model_.measures) symbols.measures.push_back(m.name);
+    for (const SplineDef& sp : model_.splines) symbols.splines.push_back(sp.name);
+    symbols.allow_time = true;
+    for (size_t k = 0; k < node.size(); ++k) {
+      const YAML::Node n = node[k];
+      Objective objective;
+      const std::string element = ItemName(n, "objective", k, &objective.name);
+      objective.where = At(n);
+      CheckKeys(n, element, {"name", "integral", "terminal"});
+      if (!IsIdentifier(objective.name)) {
+        Fail(n["name"], element, "an objective name must be letters, digits and '_', not starting with a digit");
+      }
+      if (model_.find_objective(objective.name) >= 0) Fail(n["name"], element, "duplicate objective name");
+      if (!n["integral"] && !n["terminal"]) {
+        Fail(n, element, "an objective needs 'integral', 'terminal' or both");
+      }
+      auto parse = [&](const char* key) {
+        const YAML::Node e = n[key];
+        if (!e.IsScalar()) Fail(e, element, std::string("'") + key + "' must be a number or an expression, got " + Kind(e));
+        try {
+          return Expression::Parse(e.Scalar(), symbols);
+        } catch (const ExpressionError& err) {
+          Fail(e, element, std::string("'") + key + "': in expression '" + e.Scalar() + "': " + err.what());
+        }
+      };
+      if (n["integral"]) {
+        objective.integral = parse("integral");
+        objective.has_integral = true;
+      }
+      if (n["terminal"]) {
+        objective.terminal = parse("terminal");
+        objective.has_terminal = true;
+      }
+      model_.objectives.push_back(objective);
+    }
+  }
+
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     throw ModelError(SourceLocation{path, 0, 0}, "model", std::string("cannot open the file: ") + std::strerror(errno));
@@ -1160,3 +1267,5 @@ Model LoadModelFromString(const std::string& text, const std::string& file, cons
 }
 
 }  // namespace mbdae::mbs
+  // Reaction measures (Model::measures index) and their `joint` node, until the joints are read.
+  std::vector<std::pair<size_t, YAML::Node>> reaction_joints_;

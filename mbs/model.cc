@@ -21,6 +21,7 @@ int Model::find_marker(const std::string& full_name) const { return FindByName(m
 int Model::find_body(const std::string& name) const { return FindByName(bodies, name); }
 int Model::find_measure(const std::string& name) const { return FindByName(measures, name); }
 int Model::find_spline(const std::string& name) const { return FindByName(splines, name); }
+int Model::find_objective(const std::string& name) const { return FindByName(objectives, name); }
 
 std::vector<double> Model::parameter_values() const {
   std::vector<double> values;

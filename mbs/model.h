@@ -56,7 +56,9 @@ struct Body {
   SourceLocation where;
 };
 
-enum class MeasureType { kTranslational, kRotational };
+// kReaction: the force or torque a joint exerts on the body of its marker i (a function of
+// the multipliers; mbs/reaction.h, docs/measures.md).
+enum class MeasureType { kTranslational, kRotational, kReaction };
 enum class Quantity { kPosition, kVelocity, kAcceleration };  // rotational: angle, angular_velocity, angular_acceleration
 enum class Component { kX, kY, kZ, kDistance };
 enum class MeasureFrame { kJ, kWorld };
@@ -105,6 +107,12 @@ enum class ForceFrame { kWorld, kI, kJ };
 struct Force {
   std::string name;
   ForceType type = ForceType::kForce;
+  // Reaction measures: the joint (Model::joints index); torque (rx ry rz) or force
+  // (x y z), the axis in `component` (kX/kY/kZ), in `frame` axes. i and j are the
+  // joint's markers (motion joints: those of the driven measure; gear joints: those of
+  // the second, driven measure); reactions have no quantity and no offset_initial.
+  int joint = -1;
+  bool torque = false;
   int i = -1, j = -1;  // marker indices; j defaults to ground.O
   ForceFrame frame = ForceFrame::kWorld;
   // spring_damper
@@ -175,6 +183,16 @@ struct Model {
 
   // Lookups; -1 if absent.
   int find_parameter(const std::string& name) const;
+// An objective of the model file (`objectives:`): G = integral_0^T integral dt + terminal
+// at T. Expressions over parameters, every measure (any quantity, reactions too), t and
+// spline(NAME, x) (sensitivities/model_objectives.h evaluates them).
+struct Objective {
+  std::string name;
+  Expression integral, terminal;  // over parameters, every measure (any quantity, reactions too), t, spline(NAME, x)
+  bool has_integral = false, has_terminal = false;
+  SourceLocation where;
+};
+
   int find_marker(const std::string& full_name) const;
   int find_body(const std::string& name) const;
   int find_measure(const std::string& name) const;
@@ -192,3 +210,5 @@ struct Model {
 void ReevaluateSplinePoints(Model* model);
 
 }  // namespace mbdae::mbs
+  std::vector<Objective> objectives;
+  int find_objective(const std::string& name) const;

@@ -170,6 +170,14 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
     for (const Measure& m : model.measures) {
       const bool rotational = m.type == MeasureType::kRotational;
       s << "  - name: " << m.name << "\n";
+      if (m.type == MeasureType::kReaction) {
+        const char* axis = m.component == Component::kX ? "x" : m.component == Component::kY ? "y" : "z";
+        s << "    type: reaction\n";
+        s << "    joint: " << model.joints[m.joint].name << "\n";
+        s << "    component: " << (m.torque ? "r" : "") << axis << "\n";
+        s << "    frame: " << (m.frame == MeasureFrame::kWorld ? "world" : "j") << "\n";
+        continue;
+      }
       s << "    type: " << (rotational ? "rotational" : "translational") << "\n";
       s << "    i: " << model.markers[m.i].name << "\n";
       s << "    j: " << model.markers[m.j].name << "\n";
@@ -264,6 +272,15 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
         s << "    frame: " << (f.frame == ForceFrame::kWorld ? "world" : f.frame == ForceFrame::kI ? "i" : "j") << "\n";
         s << "    value: [" << Expr(f.value[0]) << ", " << Expr(f.value[1]) << ", " << Expr(f.value[2]) << "]\n";
       }
+    }
+  }
+
+  if (!model.objectives.empty()) {
+    s << "objectives:\n";
+    for (const Objective& o : model.objectives) {
+      s << "  - name: " << o.name << "\n";
+      if (o.has_integral) s << "    integral: " << Expr(o.integral) << "\n";
+      if (o.has_terminal) s << "    terminal: " << Expr(o.terminal) << "\n";
     }
   }
 

@@ -1490,6 +1490,10 @@ void MultibodySystem::EvaluateMeasures(double /*t*/, const double* q, const doub
   Local l;
   for (size_t k = 0; k < im.model.measures.size(); ++k) {
     const Measure& m = im.model.measures[k];
+    if (m.type == MeasureType::kReaction) {  // needs the multipliers: mbs/reaction.h
+      values[k] = 0;
+      continue;
+    }
     im.Gather(im.BodyOf(m.i), im.BodyOf(m.j), q, vv, aa, l);
     double x = 0, xd = 0, xdd = 0;
     if (m.type == MeasureType::kTranslational) {

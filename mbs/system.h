@@ -60,7 +60,8 @@ class MultibodySystem final : public dae::MechanicalSystem {
   void InitialState(std::vector<double>& q, std::vector<double>& v) const;
 
   // Outputs at a solved state (lambda of the full constraint set).
-  // Measure values, in Model::measures order (without offset_initial applied).
+  // Measure values, in Model::measures order (without offset_initial applied); reaction
+  // measures are functions of lambda and are set to 0 here (mbs/reaction.h gives them).
   // Translational: the x|y|z component (marker j's axes or world axes) of
   // d = x_i - x_j, or |d|; velocity/acceleration are its exact time derivatives.
   // Rotational about axis k of marker j (p = k+1, n = k+2 cyclic): the angle
