@@ -169,6 +169,50 @@ int GglResidual::Jacobian(double t, double cj, const double* y, const double* yp
   return 0;
 }
 
+int GglResidual::ParameterJacobian(double t, const double* y, const double* yp, double* dense) {
+  const int nq = nq_, nc = nc_, n = size();
+  const int np = system_.num_parameters();
+  std::fill(dense, dense + static_cast<size_t>(n) * np, 0.0);
+  if (np == 0) return 0;
+  auto P = [&](ParameterMatrix m) -> const CscPattern& { return system_.parameter_pattern(m); };
+  if (ptdp_mu_.empty()) {
+    for (int m = 0; m < kNumParameterMatrices; ++m)
+      pval_[m].assign(P(static_cast<ParameterMatrix>(m)).nnz(), 0.0);
+    ptdp_mu_.assign(P(ParameterMatrix::kConstraintTDp).nnz(), 0.0);
+  }
+  EvalInput in;
+  in.t = t;
+  in.q = y;
+  in.v = y + nq;
+  in.a = yp + nq;
+  in.w = y + 2 * nq + nc;  // mu
+  {
+    EvalOutput out;
+    out[ParameterMatrix::kConstraintTDp] = ptdp_mu_.data();
+    const int code = system_.Evaluate(in, out);
+    if (code != 0) return code;
+  }
+  in.w = y + 2 * nq;  // lambda
+  EvalOutput out;
+  for (int m = 0; m < kNumParameterMatrices; ++m) out.parameter_matrix[m] = pval_[m].data();
+  const int code = system_.Evaluate(in, out);
+  if (code != 0) return code;
+  // Adds scale * block into the dense matrix at row offset r0.
+  auto add = [&](const CscPattern& p, const double* val, double scale, int r0) {
+    for (int c = 0; c < p.cols; ++c)
+      for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k)
+        dense[static_cast<size_t>(c) * n + r0 + p.row_index[k]] += scale * val[k];
+  };
+  auto V = [&](ParameterMatrix m) { return pval_[static_cast<int>(m)].data(); };
+  add(P(ParameterMatrix::kConstraintTDp), ptdp_mu_.data(), 1.0, 0);
+  add(P(ParameterMatrix::kMassTimesAccDp), V(ParameterMatrix::kMassTimesAccDp), 1.0, nq);
+  add(P(ParameterMatrix::kConstraintTDp), V(ParameterMatrix::kConstraintTDp), 1.0, nq);
+  add(P(ParameterMatrix::kForceDp), V(ParameterMatrix::kForceDp), -1.0, nq);
+  add(P(ParameterMatrix::kConstraintDp), V(ParameterMatrix::kConstraintDp), 1.0, 2 * nq);
+  add(P(ParameterMatrix::kConstraintVelDp), V(ParameterMatrix::kConstraintVelDp), 1.0, 2 * nq + nc);
+  return 0;
+}
+
 }  // namespace internal
 
 namespace {

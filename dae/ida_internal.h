@@ -33,6 +33,12 @@ class GglResidual {
   int Jacobian(double t, double cj, const double* y, const double* yp, double* values);
 
   const CscPattern& jacobian_pattern() const { return assembler_.pattern(); }
+
+  // dF/dp at (t, y, y') for the system's num_parameters() parameters: dense,
+  // column-major, size() x np (column k: dF/dp_k), for sensitivity analysis:
+  //   dF1/dp = d(C_q^T mu)/dp,  dF2/dp = d(M a)/dp|a=v' + d(C_q^T lambda)/dp - dQ/dp,
+  //   dF3/dp = dC/dp,           dF4/dp = d(C_q v + C_t)/dp.
+  int ParameterJacobian(double t, const double* y, const double* yp, double* dense);
   MechanicalSystem& system() { return system_; }
 
  private:
@@ -49,6 +55,7 @@ class GglResidual {
   std::vector<double> force_, constraint_, constraint_dt_;
   std::vector<double> val_[kNumMatrices];
   std::vector<double> tdq_mu_;
+  std::vector<double> pval_[kNumParameterMatrices], ptdp_mu_;
 };
 
 }  // namespace mbdae::dae::internal
