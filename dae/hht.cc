@@ -148,7 +148,13 @@ int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double*
     if (m != static_cast<int>(Matrix::kConstraintVelDq)) out.matrix[m] = mat_[m].data();
   const int rc = system_.Evaluate(in, out);
   if (rc != 0) return rc;
-  auto M = [&](Matrix m) { return mat_[static_cast<int>(m)].data(); };
+  AssembleFrom(h, mat_, values);
+  return 0;
+}
+
+void HhtNewtonMatrix::AssembleFrom(double h, const std::vector<double>* mats,
+                                   double* values) const {
+  auto M = [&](Matrix m) { return mats[static_cast<int>(m)].data(); };
   const double s = 1 / (1 + alpha_), bh2 = beta_ * h * h;
   assembler_.SetZero(values);
   assembler_.Accumulate(b_mass_, M(Matrix::kMass), s, values);
@@ -158,7 +164,6 @@ int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double*
   assembler_.Accumulate(b_qv_, M(Matrix::kForceDv), -gamma_ * h, values);
   assembler_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), equilibrium_ ? s : 1.0, values);
   assembler_.Accumulate(b_cq_, M(Matrix::kConstraintDq), 1.0, values);
-  return 0;
 }
 
 namespace {

@@ -90,6 +90,10 @@ class HhtNewtonMatrix {
   // code (0 success; values are then complete).
   int Assemble(double t, double h, const double* q, const double* v, const double* a,
                const double* lambda, double* values);
+  // The same from matrices the caller evaluated at that iterate: mats[m] holds the values
+  // of Matrix m (all but kConstraintVelDq are read; K_Ma with a = a_{n+1}, K_C with
+  // w = lambda_{n+1}).
+  void AssembleFrom(double h, const std::vector<double>* mats, double* values) const;
 
  private:
   MechanicalSystem& system_;

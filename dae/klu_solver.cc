@@ -120,6 +120,13 @@ void KluSolver::Solve(double* b) const {
   klu_solve(d.symbolic, d.numeric, d.n, 1, b, &d.common);
 }
 
+void KluSolver::SolveTransposed(double* b) const {
+  Impl& d = *impl_;
+  if (d.n == 0) return;
+  assert(d.numeric && "KluSolver::SolveTransposed before a successful Factor");
+  klu_tsolve(d.symbolic, d.numeric, d.n, 1, b, &d.common);
+}
+
 double KluSolver::rcond() const { return impl_->rcond; }
 
 long KluSolver::factorizations() const { return impl_->factorizations; }

@@ -22,6 +22,8 @@ class KluSolver {
   bool Factor(const double* values, std::string* error = nullptr);
   // Solves A x = b in place (b has `rows` entries).
   void Solve(double* b) const;
+  // Solves A^T x = b in place (klu_tsolve), for adjoint sweeps.
+  void SolveTransposed(double* b) const;
   // Reciprocal condition estimate of the last factorisation (klu_rcond).
   double rcond() const;
   long factorizations() const;

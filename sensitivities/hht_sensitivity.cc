@@ -1,4 +1,30 @@
+// Discrete adjoint and direct differentiation of HHT runs (see hht_sensitivity.h and
+// docs/sensitivities.md, "HHT").
+//
+// Step k takes the state s_{k-1} = (q, v, a, lambda, abar, wbar) to s_k. Its unknowns
+// u = (a_k, lambda_k) solve R(q_k, v_k, u, t_k, p) = 0 (the scaled residual of
+// dae/hht.cc, both forms), where q_k, v_k = Phi(s_{k-1}, a_k) are Newmark's formulas
+// (on abar in the equilibrium form) and, for Euler-parameter groups of the modified
+// scheme, the rotation map of dae/hht.cc (its fixed point in e_{k+1} resolved by the
+// implicit function theorem). With Rt(s_{k-1}, u) = R(Phi(s_{k-1}, u), u):
+//   adjoint:  Rt_u^T mu = Phi_u^T sigma_k,
+//             sigma_{k-1} = w_{k-1} grad g + Phi_s^T (sigma_k - [R_q^T mu; R_v^T mu]),
+//             dG/dp -= R_p^T mu;
+//   forward:  Rt_u du = -(R_q dq_exp + R_v dv_exp + R_p),  ds_k = ds_exp + Phi_u du.
+// Rt_u is the HHT Newton matrix for the classical scheme (exact); for the modified
+// scheme the Newton matrix is its first-order approximation, and the solves refine
+// iteratively with the exact products.
 #include "sensitivities/hht_sensitivity.h"
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/AutoDiff>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "dae/klu_solver.h"
+#include "sensitivities/system_matrices.h"
 
 namespace mbdae::sens {
 
@@ -21,6 +47,751 @@ size_t HhtTrajectory::memory() const {
   size_t n = 0;
   for (auto* v : {&t_, &h_, &q_, &v_, &a_, &lambda_}) n += v->capacity() * sizeof(double);
   return n;
+}
+
+namespace {
+
+using dae::Matrix;
+using dae::ParameterMatrix;
+
+struct Scheme {
+  double alpha = 0, beta = 0, gamma = 0;
+  double s = 1;     // 1 / (1 + alpha)
+  double mix = 1;   // dq/dabar factor: 1 + alpha (equilibrium) or 1
+  double c1 = 1;    // scale of K_Ma in dR_q/dq: s
+  double c2 = 1;    // scale of K_C - Q_q, -Q_v: s (equilibrium) or 1 (negrut)
+  double cl = 1;    // scale of C_q^T in dR_q/dlambda
+  bool eq = true, modified = false;
+};
+
+// The rotation update of one Euler-parameter group (dae/hht.cc, Kinematics), as a
+// function of x = (e_n, e'_n, a_n, wbar_n, a_{n+1}, e_iter) (4+4+4+3+4+4 = 23) giving
+// y = (e_{n+1}, e'_{n+1}, wbar_{n+1}) (4+4+3 = 11).
+constexpr int kGx = 19;  // inputs other than e_iter
+template <class T>
+void GroupMap(const Scheme& sc, double h, double r, const T* x, T* y) {
+  const T* e0 = x;
+  const T* ed0 = x + 4;
+  const T* an = x + 8;
+  const T* wb0 = x + 12;
+  const T* a1 = x + 15;
+  const T* eg = x + 19;
+  auto Gx = [](const T* e, const T* v, T* out) {
+    out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
+    out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
+    out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
+  };
+  T w0[3], dw0[3], dw1[3], th[3], w1[3];
+  Gx(e0, ed0, w0);
+  Gx(eg, a1, dw1);
+  if (sc.eq) {
+    T dwn[3];
+    Gx(e0, an, dwn);
+    for (int k = 0; k < 3; ++k) {
+      dw0[k] = 2 * dwn[k] + r * (wb0[k] - 2 * dwn[k]);
+      dw1[k] = 2 * ((1 + sc.alpha) * dw1[k] - sc.alpha * dwn[k]);
+    }
+  } else {
+    Gx(e0, an, dw0);
+    for (int k = 0; k < 3; ++k) {
+      dw0[k] *= 2;
+      dw1[k] *= 2;
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    w0[k] *= 2;
+    y[8 + k] = dw1[k];
+    th[k] = h * w0[k] + h * h * ((0.5 - sc.beta) * dw0[k] + sc.beta * dw1[k]);
+    w1[k] = w0[k] + h * ((1 - sc.gamma) * dw0[k] + sc.gamma * dw1[k]);
+  }
+  const T ang2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2];
+  T c, sc_;
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  if (ang2 > 1e-16) {
+    const T ang = sqrt(ang2);
+    c = cos(ang / 2);
+    sc_ = sin(ang / 2) / ang;
+  } else {  // the series (exact to round-off there; no derivative of sqrt at 0)
+    c = 1 - ang2 / 8 + ang2 * ang2 / 384;
+    sc_ = 0.5 - ang2 / 48;
+  }
+  const T rq[4] = {c, sc_ * th[0], sc_ * th[1], sc_ * th[2]};
+  T eu[4];
+  eu[0] = e0[0] * rq[0] - e0[1] * rq[1] - e0[2] * rq[2] - e0[3] * rq[3];
+  eu[1] = e0[0] * rq[1] + e0[1] * rq[0] + e0[2] * rq[3] - e0[3] * rq[2];
+  eu[2] = e0[0] * rq[2] - e0[1] * rq[3] + e0[2] * rq[0] + e0[3] * rq[1];
+  eu[3] = e0[0] * rq[3] + e0[1] * rq[2] - e0[2] * rq[1] + e0[3] * rq[0];
+  T ed[4];
+  ed[0] = -eu[1] * w1[0] - eu[2] * w1[1] - eu[3] * w1[2];
+  ed[1] = eu[0] * w1[0] - eu[3] * w1[1] + eu[2] * w1[2];
+  ed[2] = eu[3] * w1[0] + eu[0] * w1[1] - eu[1] * w1[2];
+  ed[3] = -eu[2] * w1[0] + eu[1] * w1[1] + eu[0] * w1[2];
+  T s = T(0);
+  for (int k = 0; k < 4; ++k) {
+    ed[k] *= 0.5;
+    s += eu[k] * a1[k] + ed[k] * ed[k];
+  }
+  const T rho = sc.mix * sc.beta * h * h * s;
+  for (int k = 0; k < 4; ++k) {
+    y[k] = (1 + rho) * eu[k];
+    y[4 + k] = ed[k] + sc.mix * sc.gamma * h * s * eu[k];
+  }
+}
+
+using GroupJac = Eigen::Matrix<double, 11, kGx>;
+
+// Total derivative of y with respect to the first 19 inputs, with e_iter = e_{n+1}.
+GroupJac GroupJacobian(const Scheme& sc, double h, double r, const double* xin) {
+  using Deriv = Eigen::Matrix<double, 23, 1>;
+  using AD = Eigen::AutoDiffScalar<Deriv>;
+  AD x[23], y[11];
+  for (int i = 0; i < 23; ++i) x[i] = AD(xin[i], 23, i);
+  GroupMap(sc, h, r, x, y);
+  Eigen::Matrix<double, 11, 23> J;
+  for (int i = 0; i < 11; ++i) J.row(i) = y[i].derivatives().transpose();
+  const Eigen::Matrix<double, 11, 4> Jit = J.rightCols<4>();
+  const Eigen::Matrix4d A = Eigen::Matrix4d::Identity() - Jit.topRows<4>();
+  const Eigen::Matrix<double, 4, kGx> de = A.partialPivLu().solve(J.topLeftCorner<4, kGx>());
+  return J.leftCols<kGx>() + Jit * de;
+}
+
+// The linearisation of the run, step by step, and the two sweeps.
+class Sweeps {
+ public:
+  Sweeps(dae::MechanicalSystem& system, const dae::HhtOptions& options,
+         ObjectiveFunction& objective, const HhtTrajectory& traj)
+      : sys_(system), obj_(objective), traj_(traj), newton_(system, options),
+        sm_(system), sm_prev_(system) {
+    nq_ = system.num_coordinates();
+    nc_ = system.num_constraints();
+    np_ = system.num_parameters();
+    no_ = objective.num_objectives();
+    sc_.alpha = options.alpha;
+    sc_.beta = (1 - sc_.alpha) * (1 - sc_.alpha) / 4;
+    sc_.gamma = 0.5 - sc_.alpha;
+    sc_.s = 1 / (1 + sc_.alpha);
+    sc_.eq = options.form == dae::HhtOptions::Form::kEquilibrium;
+    sc_.mix = sc_.eq ? 1 + sc_.alpha : 1.0;
+    sc_.c1 = sc_.s;
+    sc_.c2 = sc_.eq ? sc_.s : 1.0;
+    sc_.cl = sc_.eq ? sc_.s : 1.0;
+    sc_.modified = options.modified;
+    if (sc_.modified) groups_ = system.quaternion_offsets();
+    quat_.assign(nq_, false);
+    for (int g : groups_)
+      for (int k = 0; k < 4; ++k) quat_[g + k] = true;
+    jac_.assign(newton_.pattern().nnz(), 0.0);
+    klu_ = std::make_unique<dae::KluSolver>(newton_.pattern());
+    T_.resize(groups_.size());
+    all_.All();
+    all_.force = all_.constraint = all_.constraint_dt = all_.acc_rhs = false;
+    prev_.matrices[static_cast<int>(Matrix::kForceDq)] = true;
+    prev_.matrices[static_cast<int>(Matrix::kForceDv)] = true;
+    prev_.matrices[static_cast<int>(Matrix::kConstraintDq)] = true;
+    prev_.matrices[static_cast<int>(Matrix::kConstraintTDq)] = true;
+    prev_.parameters[static_cast<int>(ParameterMatrix::kForceDp)] = true;
+    prev_.parameters[static_cast<int>(ParameterMatrix::kConstraintTDp)] = true;
+    const int n = nq_ + nc_;
+    for (auto* v : {&b_, &mu_, &res_, &tmp_}) v->assign(n, 0.0);
+    for (auto* v : {&rq_, &rv_, &abar_prev_, &abar_cur_}) v->assign(nq_, 0.0);
+  }
+
+  bool Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* out, std::string* error);
+  bool Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* out, std::string* error);
+
+ private:
+  int N() const { return traj_.size() - 1; }
+  double StepT1(int k) const { return traj_.t(k - 1) + traj_.h(k); }
+  double Ratio(int k) const {
+    return sc_.eq && k >= 2 && traj_.h(k - 1) > 0 ? traj_.h(k) / traj_.h(k - 1) : 1.0;
+  }
+  // Trapezoidal weight of state n.
+  double Weight(int n) const {
+    double w = 0;
+    if (n >= 1) w += 0.5 * traj_.h(n);
+    if (n + 1 <= N()) w += 0.5 * traj_.h(n + 1);
+    return w;
+  }
+  // abar_n and wbar_n (per group) recomputed as the integrator made them.
+  void AccelerationLike(int n, std::vector<double>* abar, std::vector<double>* wbar) const {
+    abar->assign(nq_, 0.0);
+    wbar->assign(3 * groups_.size(), 0.0);
+    const double* a = traj_.a(n);
+    for (int i = 0; i < nq_; ++i)
+      (*abar)[i] = n == 0 || !sc_.eq ? a[i] : (1 + sc_.alpha) * a[i] - sc_.alpha * traj_.a(n - 1)[i];
+    for (size_t grp = 0; grp < groups_.size(); ++grp) {
+      const int g = groups_[grp];
+      double w[3], wp[3];
+      Gx(traj_.q(n) + g, a + g, w);
+      if (n == 0 || !sc_.eq) {
+        for (int k = 0; k < 3; ++k) (*wbar)[3 * grp + k] = 2 * w[k];
+      } else {
+        Gx(traj_.q(n - 1) + g, traj_.a(n - 1) + g, wp);
+        for (int k = 0; k < 3; ++k)
+          (*wbar)[3 * grp + k] = 2 * ((1 + sc_.alpha) * w[k] - sc_.alpha * wp[k]);
+      }
+    }
+  }
+  static void Gx(const double* e, const double* v, double* out) {
+    out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
+    out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
+    out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
+  }
+
+  // Evaluates everything step k needs (matrices at s_k, the Newton matrix, the group
+  // Jacobians; for the negrut form the matrices of F at s_{k-1}).
+  bool Linearise(int k, std::string* error) {
+    const double t1 = StepT1(k), h = traj_.h(k);
+    std::string err;
+    if (sm_.Evaluate(all_, t1, traj_.q(k), traj_.v(k), traj_.a(k), traj_.lambda(k), &err) != 0) {
+      *error = "evaluation at t = " + Num(t1) + " failed: " + err;
+      return false;
+    }
+    newton_.AssembleFrom(h, sm_.all_values(), jac_.data());
+    ++factorizations_;
+    if (!klu_->Factor(jac_.data(), &err)) {
+      *error = "the Newton matrix of the step to t = " + Num(t1) + " is singular: " + err;
+      return false;
+    }
+    if (!sc_.eq) {
+      const double tp = k == 1 ? traj_.t(0) : traj_.t(k - 2) + traj_.h(k - 1);
+      if (sm_prev_.Evaluate(prev_, tp, traj_.q(k - 1), traj_.v(k - 1), traj_.a(k - 1),
+                            traj_.lambda(k - 1), &err) != 0) {
+        *error = "evaluation at t = " + Num(tp) + " failed: " + err;
+        return false;
+      }
+    }
+    if (!groups_.empty()) {
+      std::vector<double> abar, wbar;
+      AccelerationLike(k - 1, &abar, &wbar);
+      const double r = Ratio(k);
+      for (size_t grp = 0; grp < groups_.size(); ++grp) {
+        const int g = groups_[grp];
+        double x[23];
+        for (int i = 0; i < 4; ++i) {
+          x[i] = traj_.q(k - 1)[g + i];
+          x[4 + i] = traj_.v(k - 1)[g + i];
+          x[8 + i] = traj_.a(k - 1)[g + i];
+          x[15 + i] = traj_.a(k)[g + i];
+          x[19 + i] = traj_.q(k)[g + i];
+        }
+        for (int i = 0; i < 3; ++i) x[12 + i] = wbar[3 * grp + i];
+        T_[grp] = GroupJacobian(sc_, h, r, x);
+      }
+    }
+    return true;
+  }
+
+  // rq = R_q^T mu, rv = R_v^T mu (partials of the scaled residual in q_k, v_k).
+  void RqvT(double h, const double* mu, double* rq, double* rv) const {
+    std::fill(rq, rq + nq_, 0.0);
+    std::fill(rv, rv + nq_, 0.0);
+    sm_.MulT(Matrix::kMassTimesAccDq, sc_.c1, mu, rq);
+    sm_.MulT(Matrix::kConstraintTDq, sc_.c2, mu, rq);
+    sm_.MulT(Matrix::kForceDq, -sc_.c2, mu, rq);
+    sm_.MulT(Matrix::kConstraintDq, 1 / (sc_.mix * sc_.beta * h * h), mu + nq_, rq);
+    sm_.MulT(Matrix::kForceDv, -sc_.c2, mu, rv);
+  }
+  // y = R_q dq + R_v dv (nq + nc).
+  void Rqv(double h, const double* dq, const double* dv, double* y) const {
+    std::fill(y, y + nq_ + nc_, 0.0);
+    sm_.Mul(Matrix::kMassTimesAccDq, sc_.c1, dq, y);
+    sm_.Mul(Matrix::kConstraintTDq, sc_.c2, dq, y);
+    sm_.Mul(Matrix::kForceDq, -sc_.c2, dq, y);
+    sm_.Mul(Matrix::kForceDv, -sc_.c2, dv, y);
+    sm_.Mul(Matrix::kConstraintDq, 1 / (sc_.mix * sc_.beta * h * h), dq, y + nq_);
+  }
+  // The a_k-columns of Phi applied to a vector (forward) and their transposes.
+  void PhiA(double h, const double* da, double* dq, double* dv) const {
+    for (int i = 0; i < nq_; ++i) {
+      dq[i] = sc_.mix * sc_.beta * h * h * da[i];
+      dv[i] = sc_.mix * sc_.gamma * h * da[i];
+    }
+    for (size_t grp = 0; grp < groups_.size(); ++grp) {
+      const int g = groups_[grp];
+      const Eigen::Map<const Eigen::Vector4d> x(da + g);
+      Eigen::Map<Eigen::Vector4d>(dq + g) = T_[grp].block<4, 4>(0, 15) * x;
+      Eigen::Map<Eigen::Vector4d>(dv + g) = T_[grp].block<4, 4>(4, 15) * x;
+    }
+  }
+  void PhiAT(double h, const double* sq, const double* sv, double* da) const {
+    for (int i = 0; i < nq_; ++i)
+      if (!quat_[i]) da[i] += sc_.mix * (sc_.beta * h * h * sq[i] + sc_.gamma * h * sv[i]);
+    for (size_t grp = 0; grp < groups_.size(); ++grp) {
+      const int g = groups_[grp];
+      Eigen::Map<Eigen::Vector4d>(da + g) +=
+          T_[grp].block<4, 4>(0, 15).transpose() * Eigen::Map<const Eigen::Vector4d>(sq + g) +
+          T_[grp].block<4, 4>(4, 15).transpose() * Eigen::Map<const Eigen::Vector4d>(sv + g);
+    }
+  }
+  // y = Rt_u^T mu (transposed = true) or Rt_u x (false), exact.
+  void ApplyRt(double h, bool transposed, const double* x, double* y) {
+    if (transposed) {
+      RqvT(h, x, rq_.data(), rv_.data());
+      std::fill(y, y + nq_ + nc_, 0.0);
+      PhiAT(h, rq_.data(), rv_.data(), y);
+      sm_.MulT(Matrix::kMass, sc_.s, x, y);
+      sm_.Mul(Matrix::kConstraintDq, sc_.cl, x, y + nq_);
+    } else {
+      PhiA(h, x, rq_.data(), rv_.data());
+      Rqv(h, rq_.data(), rv_.data(), y);
+      sm_.Mul(Matrix::kMass, sc_.s, x, y);
+      sm_.MulT(Matrix::kConstraintDq, sc_.cl, x + nq_, y);
+    }
+  }
+  // Solves Rt_u^T x = b (or Rt_u x = b) in place: the factorised Newton matrix and
+  // iterative refinement with the exact products (one pass for the classical scheme).
+  bool Solve(double h, bool transposed, double* b, std::string* error) {
+    const int n = nq_ + nc_;
+    std::copy(b, b + n, b_.begin());
+    double bnorm = 0;
+    for (int i = 0; i < n; ++i) bnorm = std::max(bnorm, std::abs(b_[i]));
+    std::copy(b_.begin(), b_.end(), mu_.begin());
+    transposed ? klu_->SolveTransposed(mu_.data()) : klu_->Solve(mu_.data());
+    ++solves_;
+    if (!groups_.empty()) {
+      double last = HUGE_VAL;
+      for (int it = 0;; ++it) {
+        ApplyRt(h, transposed, mu_.data(), tmp_.data());
+        double rnorm = 0;
+        for (int i = 0; i < n; ++i) {
+          res_[i] = b_[i] - tmp_[i];
+          rnorm = std::max(rnorm, std::abs(res_[i]));
+        }
+        if (rnorm <= 1e-14 * bnorm || (it > 3 && rnorm >= 0.5 * last)) break;
+        if (it >= 50) {
+          *error = "the refinement of a step's linear system did not converge (residual " +
+                   Num(rnorm / std::max(bnorm, 1e-300)) + " relative)";
+          return false;
+        }
+        last = rnorm;
+        transposed ? klu_->SolveTransposed(res_.data()) : klu_->Solve(res_.data());
+        ++solves_;
+        for (int i = 0; i < n; ++i) mu_[i] += res_[i];
+      }
+    }
+    std::copy(mu_.begin(), mu_.end(), b);
+    return true;
+  }
+
+  static std::string Num(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", x);
+    return buf;
+  }
+  bool ObjectiveFail(std::string* error) const {
+    *error = std::string("objective evaluation failed: ") + obj_.last_error();
+    return false;
+  }
+  ObjectivePoint Point(int n) const {
+    ObjectivePoint x;
+    x.t = traj_.t(n);
+    x.q = traj_.q(n);
+    x.v = traj_.v(n);
+    x.a = traj_.a(n);
+    x.lambda = traj_.lambda(n);
+    return x;
+  }
+
+  dae::MechanicalSystem& sys_;
+  ObjectiveFunction& obj_;
+  const HhtTrajectory& traj_;
+  dae::HhtNewtonMatrix newton_;
+  SystemMatrices sm_, sm_prev_;
+  SystemMatrices::Request all_, prev_;
+  int nq_ = 0, nc_ = 0, np_ = 0, no_ = 0;
+  Scheme sc_;
+  std::vector<int> groups_;
+  std::vector<bool> quat_;
+  std::vector<GroupJac> T_;
+  std::vector<double> jac_;
+  std::unique_ptr<dae::KluSolver> klu_;
+  std::vector<double> b_, mu_, res_, tmp_, rq_, rv_, abar_prev_, abar_cur_;
+  long solves_ = 0, factorizations_ = 0;
+};
+
+// Per-objective state adjoints, stored objective after objective.
+struct StateVectors {
+  int nq = 0, nc = 0, ng = 0, no = 0;
+  std::vector<double> q, v, a, l, ab, wb;
+  void Resize(int nq_, int nc_, int ng_, int no_) {
+    nq = nq_, nc = nc_, ng = ng_, no = no_;
+    q.assign(size_t(nq) * no, 0.0);
+    v.assign(size_t(nq) * no, 0.0);
+    a.assign(size_t(nq) * no, 0.0);
+    ab.assign(size_t(nq) * no, 0.0);
+    l.assign(size_t(nc) * no, 0.0);
+    wb.assign(size_t(3 * ng) * no, 0.0);
+  }
+  void Zero() {
+    for (auto* x : {&q, &v, &a, &l, &ab, &wb}) std::fill(x->begin(), x->end(), 0.0);
+  }
+};
+
+bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* out,
+                     std::string* error) {
+  const int N = this->N();
+  const int ng = static_cast<int>(groups_.size());
+  out->values.assign(no_, 0.0);
+  out->gradient.assign(size_t(no_) * np_, 0.0);
+  StateVectors sig, prev;
+  sig.Resize(nq_, nc_, ng, no_);
+  prev.Resize(nq_, nc_, ng, no_);
+  std::vector<double> wts(no_, 0.0), vals(no_), grad_p(np_);
+  // Running and terminal terms at state n into sig (objective j: weights e_j).
+  auto add_terms = [&](int n, bool terminal) -> bool {
+    const ObjectivePoint x = Point(n);
+    const double w = Weight(n);
+    if (w > 0) {
+      if (obj_.Integrand(x, vals.data()) != 0) return ObjectiveFail(error);
+      for (int j = 0; j < no_; ++j) out->values[j] += w * vals[j];
+    }
+    if (terminal) {
+      if (obj_.Terminal(x, vals.data()) != 0) return ObjectiveFail(error);
+      for (int j = 0; j < no_; ++j) out->values[j] += vals[j];
+    }
+    for (int j = 0; j < no_; ++j) {
+      std::fill(wts.begin(), wts.end(), 0.0);
+      ObjectiveGradient g;
+      g.dq = &sig.q[size_t(j) * nq_];
+      g.dv = &sig.v[size_t(j) * nq_];
+      g.da = &sig.a[size_t(j) * nq_];
+      g.dlambda = &sig.l[size_t(j) * nc_];
+      g.dp = &out->gradient[size_t(j) * np_];
+      if (w > 0 && obj_.has_integral(j)) {
+        wts[j] = w;
+        if (obj_.IntegrandGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
+      }
+      if (terminal && obj_.has_terminal(j)) {
+        wts[j] = 1;
+        if (obj_.TerminalGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
+      }
+    }
+    return true;
+  };
+  if (!add_terms(N, true)) return false;
+
+  std::vector<double> sq(nq_), sv(nq_), rhs(nq_ + nc_);
+  for (int k = N; k >= 1; --k) {
+    if (!Linearise(k, error)) return false;
+    const double h = traj_.h(k), r = Ratio(k);
+    prev.Zero();
+    for (int j = 0; j < no_; ++j) {
+      const double* Sq = &sig.q[size_t(j) * nq_];
+      const double* Sv = &sig.v[size_t(j) * nq_];
+      const double* Sa = &sig.a[size_t(j) * nq_];
+      const double* Sab = &sig.ab[size_t(j) * nq_];
+      const double* Sl = &sig.l[size_t(j) * nc_];
+      const double* Swb = &sig.wb[size_t(j) * 3 * ng];
+      // b = Phi_u^T sigma.
+      std::fill(rhs.begin(), rhs.end(), 0.0);
+      for (int i = 0; i < nq_; ++i) rhs[i] = Sa[i] + (sc_.eq && !quat_[i] ? (1 + sc_.alpha) * Sab[i] : 0.0);
+      PhiAT(h, Sq, Sv, rhs.data());
+      for (int grp = 0; grp < ng; ++grp) {
+        if (!sc_.eq) break;
+        const int g = groups_[grp];
+        Eigen::Map<Eigen::Vector4d>(rhs.data() + g) +=
+            T_[grp].block<3, 4>(8, 15).transpose() * Eigen::Map<const Eigen::Vector3d>(Swb + 3 * grp);
+      }
+      for (int c = 0; c < nc_; ++c) rhs[nq_ + c] = Sl[c];
+      if (!Solve(h, true, rhs.data(), error)) return false;
+      const double* mu = rhs.data();
+      // Parameters: dG/dp -= R_p^T mu.
+      double* gp = &out->gradient[size_t(j) * np_];
+      if (np_ > 0) {
+        sm_.MulT(ParameterMatrix::kMassTimesAccDp, -sc_.c1, mu, gp);
+        sm_.MulT(ParameterMatrix::kConstraintTDp, -sc_.c2, mu, gp);
+        sm_.MulT(ParameterMatrix::kForceDp, sc_.c2, mu, gp);
+        sm_.MulT(ParameterMatrix::kConstraintDp, -1 / (sc_.mix * sc_.beta * h * h), mu + nq_, gp);
+      }
+      // sigma' of q_k, v_k.
+      RqvT(h, mu, rq_.data(), rv_.data());
+      for (int i = 0; i < nq_; ++i) {
+        sq[i] = Sq[i] - rq_[i];
+        sv[i] = Sv[i] - rv_[i];
+      }
+      double* Pq = &prev.q[size_t(j) * nq_];
+      double* Pv = &prev.v[size_t(j) * nq_];
+      double* Pa = &prev.a[size_t(j) * nq_];
+      double* Pab = &prev.ab[size_t(j) * nq_];
+      double* Pl = &prev.l[size_t(j) * nc_];
+      double* Pwb = &prev.wb[size_t(j) * 3 * ng];
+      for (int i = 0; i < nq_; ++i) {
+        if (quat_[i]) continue;
+        Pq[i] += sq[i];
+        Pv[i] += h * sq[i] + sv[i];
+        const double a0 = h * h * (0.5 - sc_.beta) * sq[i] + h * (1 - sc_.gamma) * sv[i];
+        if (sc_.eq) {
+          const double ab1 = Sab[i] + h * h * sc_.beta * sq[i] + h * sc_.gamma * sv[i];
+          Pa[i] += (1 - r) * a0 - sc_.alpha * ab1;
+          Pab[i] += r * a0;
+        } else {
+          Pa[i] += a0;
+        }
+      }
+      for (int grp = 0; grp < ng; ++grp) {
+        const int g = groups_[grp];
+        Eigen::Matrix<double, 11, 1> ybar;
+        ybar.head<4>() = Eigen::Map<const Eigen::Vector4d>(sq.data() + g);
+        ybar.segment<4>(4) = Eigen::Map<const Eigen::Vector4d>(sv.data() + g);
+        if (sc_.eq)
+          ybar.tail<3>() = Eigen::Map<const Eigen::Vector3d>(Swb + 3 * grp);
+        else
+          ybar.tail<3>().setZero();
+        const Eigen::Matrix<double, kGx, 1> xbar = T_[grp].transpose() * ybar;
+        for (int i = 0; i < 4; ++i) {
+          Pq[g + i] += xbar[i];
+          Pv[g + i] += xbar[4 + i];
+          Pa[g + i] += xbar[8 + i];
+        }
+        if (sc_.eq)
+          for (int i = 0; i < 3; ++i) Pwb[3 * grp + i] += xbar[12 + i];
+      }
+      // Negrut form: R_q has -alpha/(1+alpha) F_{k-1}, F = C_q^T lambda - Q.
+      if (!sc_.eq) {
+        const double c = sc_.alpha * sc_.s;
+        sm_prev_.MulT(Matrix::kConstraintTDq, c, mu, Pq);
+        sm_prev_.MulT(Matrix::kForceDq, -c, mu, Pq);
+        sm_prev_.MulT(Matrix::kForceDv, -c, mu, Pv);
+        sm_prev_.Mul(Matrix::kConstraintDq, c, mu, Pl);
+        if (np_ > 0) {
+          sm_prev_.MulT(ParameterMatrix::kConstraintTDp, c, mu, gp);
+          sm_prev_.MulT(ParameterMatrix::kForceDp, -c, mu, gp);
+        }
+      }
+    }
+    std::swap(sig, prev);
+    if (!add_terms(k - 1, false)) return false;
+  }
+
+  // The initial state: abar_0 = a_0, wbar_0 = 2 G(e_0) a_0 per group.
+  for (int j = 0; j < no_; ++j) {
+    double* gp = &out->gradient[size_t(j) * np_];
+    const double* Sq = &sig.q[size_t(j) * nq_];
+    const double* Sv = &sig.v[size_t(j) * nq_];
+    const double* Sa = &sig.a[size_t(j) * nq_];
+    const double* Sab = &sig.ab[size_t(j) * nq_];
+    const double* Sl = &sig.l[size_t(j) * nc_];
+    const double* Swb = &sig.wb[size_t(j) * 3 * ng];
+    for (int k = 0; k < np_; ++k) {
+      const double* dq = &dx0.dq[size_t(k) * nq_];
+      const double* dv = &dx0.dv[size_t(k) * nq_];
+      const double* da = &dx0.da[size_t(k) * nq_];
+      const double* dl = &dx0.dlambda[size_t(k) * nc_];
+      double sum = 0;
+      for (int i = 0; i < nq_; ++i) sum += Sq[i] * dq[i] + Sv[i] * dv[i] + (Sa[i] + Sab[i]) * da[i];
+      for (int c = 0; c < nc_; ++c) sum += Sl[c] * dl[c];
+      for (int grp = 0; grp < ng && sc_.eq; ++grp) {
+        const int g = groups_[grp];
+        double w1[3], w2[3];
+        Gx(dq + g, traj_.a(0) + g, w1);
+        Gx(traj_.q(0) + g, da + g, w2);
+        for (int i = 0; i < 3; ++i) sum += Swb[3 * grp + i] * 2 * (w1[i] + w2[i]);
+      }
+      gp[k] += sum;
+    }
+  }
+  out->linear_solves = solves_;
+  out->factorizations = factorizations_;
+  return true;
+}
+
+bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* out,
+                     std::string* error) {
+  const int N = this->N();
+  const int ng = static_cast<int>(groups_.size());
+  out->values.assign(no_, 0.0);
+  out->gradient.assign(size_t(no_) * np_, 0.0);
+  // Sensitivities of the state, parameter after parameter (column k at [k * size]).
+  StateVectors ds, dn;
+  ds.Resize(nq_, nc_, ng, np_);
+  dn.Resize(nq_, nc_, ng, np_);
+  ds.q = dx0.dq;
+  ds.v = dx0.dv;
+  ds.a = dx0.da;
+  ds.ab = dx0.da;
+  ds.l = dx0.dlambda;
+  for (int k = 0; k < np_; ++k)
+    for (int grp = 0; grp < ng && sc_.eq; ++grp) {
+      const int g = groups_[grp];
+      double w1[3], w2[3];
+      Gx(&ds.q[size_t(k) * nq_ + g], traj_.a(0) + g, w1);
+      Gx(traj_.q(0) + g, &ds.a[size_t(k) * nq_ + g], w2);
+      for (int i = 0; i < 3; ++i) ds.wb[size_t(k) * 3 * ng + 3 * grp + i] = 2 * (w1[i] + w2[i]);
+    }
+  // dG += (w grad g + [terminal] grad phi) . ds_n + partials in p.
+  std::vector<double> vals(no_), wts(no_), gq(nq_), gv(nq_), ga(nq_), gl(nc_), gpp(np_);
+  auto add_terms = [&](int n, bool terminal) -> bool {
+    const ObjectivePoint x = Point(n);
+    const double w = Weight(n);
+    if (w > 0) {
+      if (obj_.Integrand(x, vals.data()) != 0) return ObjectiveFail(error);
+      for (int j = 0; j < no_; ++j) out->values[j] += w * vals[j];
+    }
+    if (terminal) {
+      if (obj_.Terminal(x, vals.data()) != 0) return ObjectiveFail(error);
+      for (int j = 0; j < no_; ++j) out->values[j] += vals[j];
+    }
+    for (int j = 0; j < no_; ++j) {
+      for (auto* z : {&gq, &gv, &ga, &gl, &gpp}) std::fill(z->begin(), z->end(), 0.0);
+      ObjectiveGradient g;
+      g.dq = gq.data();
+      g.dv = gv.data();
+      g.da = ga.data();
+      g.dlambda = gl.data();
+      g.dp = gpp.data();
+      std::fill(wts.begin(), wts.end(), 0.0);
+      bool any = false;
+      if (w > 0 && obj_.has_integral(j)) {
+        wts[j] = w;
+        if (obj_.IntegrandGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
+        any = true;
+      }
+      if (terminal && obj_.has_terminal(j)) {
+        wts[j] = 1;
+        if (obj_.TerminalGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
+        any = true;
+      }
+      if (!any) continue;
+      for (int k = 0; k < np_; ++k) {
+        double sum = gpp[k];
+        const size_t oq = size_t(k) * nq_, oc = size_t(k) * nc_;
+        for (int i = 0; i < nq_; ++i)
+          sum += gq[i] * ds.q[oq + i] + gv[i] * ds.v[oq + i] + ga[i] * ds.a[oq + i];
+        for (int c = 0; c < nc_; ++c) sum += gl[c] * ds.l[oc + c];
+        out->gradient[size_t(j) * np_ + k] += sum;
+      }
+    }
+    return true;
+  };
+  if (!add_terms(0, N == 0)) return false;
+
+  std::vector<double> dqe(nq_), dve(nq_), rhs(nq_ + nc_), dqa(nq_), dva(nq_);
+  for (int k = 1; k <= N; ++k) {
+    if (!Linearise(k, error)) return false;
+    const double h = traj_.h(k), r = Ratio(k);
+    for (int p = 0; p < np_; ++p) {
+      const size_t oq = size_t(p) * nq_, oc = size_t(p) * nc_, ow = size_t(p) * 3 * ng;
+      const double* dq = &ds.q[oq];
+      const double* dv = &ds.v[oq];
+      const double* da = &ds.a[oq];
+      const double* dab = &ds.ab[oq];
+      // Explicit part of q_k, v_k (a_k held).
+      for (int i = 0; i < nq_; ++i) {
+        const double a0 = sc_.eq ? (1 - r) * da[i] + r * dab[i] : da[i];
+        const double ab1 = sc_.eq ? -sc_.alpha * da[i] : 0.0;
+        dqe[i] = dq[i] + h * dv[i] + h * h * ((0.5 - sc_.beta) * a0 + sc_.beta * ab1);
+        dve[i] = dv[i] + h * ((1 - sc_.gamma) * a0 + sc_.gamma * ab1);
+      }
+      Eigen::Matrix<double, kGx, 1> xg;
+      for (int grp = 0; grp < ng; ++grp) {
+        const int g = groups_[grp];
+        for (int i = 0; i < 4; ++i) {
+          xg[i] = dq[g + i];
+          xg[4 + i] = dv[g + i];
+          xg[8 + i] = da[g + i];
+          xg[15 + i] = 0;
+        }
+        for (int i = 0; i < 3; ++i) xg[12 + i] = sc_.eq ? ds.wb[ow + 3 * grp + i] : 0.0;
+        const Eigen::Matrix<double, 11, 1> y = T_[grp] * xg;
+        for (int i = 0; i < 4; ++i) {
+          dqe[g + i] = y[i];
+          dve[g + i] = y[4 + i];
+        }
+      }
+      // Rt_u du = -(R_q dq_e + R_v dv_e + R_p e_p [- alpha s dF_{k-1}]).
+      Rqv(h, dqe.data(), dve.data(), rhs.data());
+      sm_.AddColumn(ParameterMatrix::kMassTimesAccDp, p, sc_.c1, rhs.data());
+      sm_.AddColumn(ParameterMatrix::kConstraintTDp, p, sc_.c2, rhs.data());
+      sm_.AddColumn(ParameterMatrix::kForceDp, p, -sc_.c2, rhs.data());
+      sm_.AddColumn(ParameterMatrix::kConstraintDp, p, 1 / (sc_.mix * sc_.beta * h * h),
+                    rhs.data() + nq_);
+      if (!sc_.eq) {
+        const double c = -sc_.alpha * sc_.s;
+        sm_prev_.Mul(Matrix::kConstraintTDq, c, dq, rhs.data());
+        sm_prev_.Mul(Matrix::kForceDq, -c, dq, rhs.data());
+        sm_prev_.Mul(Matrix::kForceDv, -c, dv, rhs.data());
+        sm_prev_.MulT(Matrix::kConstraintDq, c, &ds.l[oc], rhs.data());
+        sm_prev_.AddColumn(ParameterMatrix::kConstraintTDp, p, c, rhs.data());
+        sm_prev_.AddColumn(ParameterMatrix::kForceDp, p, -c, rhs.data());
+      }
+      for (double& x : rhs) x = -x;
+      if (!Solve(h, false, rhs.data(), error)) return false;
+      // ds_k = explicit + Phi_u du.
+      PhiA(h, rhs.data(), dqa.data(), dva.data());
+      double* nq = &dn.q[oq];
+      double* nv = &dn.v[oq];
+      double* na = &dn.a[oq];
+      double* nab = &dn.ab[oq];
+      for (int i = 0; i < nq_; ++i) {
+        nq[i] = dqe[i] + dqa[i];
+        nv[i] = dve[i] + dva[i];
+        na[i] = rhs[i];
+        nab[i] = sc_.eq ? (1 + sc_.alpha) * rhs[i] - sc_.alpha * da[i] : rhs[i];
+      }
+      for (int c = 0; c < nc_; ++c) dn.l[oc + c] = rhs[nq_ + c];
+      for (int grp = 0; grp < ng; ++grp) {
+        const int g = groups_[grp];
+        for (int i = 0; i < 4; ++i) xg[15 + i] = rhs[g + i];
+        for (int i = 0; i < 4; ++i) {
+          xg[i] = dq[g + i];
+          xg[4 + i] = dv[g + i];
+          xg[8 + i] = da[g + i];
+        }
+        for (int i = 0; i < 3; ++i) xg[12 + i] = sc_.eq ? ds.wb[ow + 3 * grp + i] : 0.0;
+        const Eigen::Matrix<double, 11, 1> y = T_[grp] * xg;
+        for (int i = 0; i < 3; ++i) dn.wb[ow + 3 * grp + i] = y[8 + i];
+      }
+    }
+    std::swap(ds, dn);
+    if (!add_terms(k, k == N)) return false;
+  }
+  out->linear_solves = solves_;
+  out->factorizations = factorizations_;
+  return true;
+}
+
+bool Check(dae::MechanicalSystem& system, ObjectiveFunction& objective,
+           const HhtTrajectory& traj, const InitialStateDerivatives& dx0, std::string* error) {
+  const int nq = system.num_coordinates(), nc = system.num_constraints();
+  const int np = system.num_parameters();
+  if (traj.nq() != nq || traj.nc() != nc) {
+    *error = "the trajectory does not belong to this system";
+    return false;
+  }
+  if (traj.size() < 1) {
+    *error = "the trajectory is empty (record the run with HhtTrajectory::Recorder)";
+    return false;
+  }
+  if (dx0.np != np || dx0.dq.size() != size_t(nq) * np || dx0.dv.size() != size_t(nq) * np ||
+      dx0.da.size() != size_t(nq) * np || dx0.dlambda.size() != size_t(nc) * np) {
+    *error = "the initial-state derivatives do not match the system's parameters";
+    return false;
+  }
+  (void)objective;
+  return true;
+}
+
+}  // namespace
+
+bool HhtAdjointGradient(dae::MechanicalSystem& system, const dae::HhtOptions& options,
+                        ObjectiveFunction& objective, const HhtTrajectory& trajectory,
+                        const InitialStateDerivatives& dx0, HhtSensitivityResult* result,
+                        std::string* error) {
+  if (!Check(system, objective, trajectory, dx0, error)) return false;
+  Sweeps s(system, options, objective, trajectory);
+  return s.Adjoint(dx0, result, error);
+}
+
+bool HhtForwardGradient(dae::MechanicalSystem& system, const dae::HhtOptions& options,
+                        ObjectiveFunction& objective, const HhtTrajectory& trajectory,
+                        const InitialStateDerivatives& dx0, HhtSensitivityResult* result,
+                        std::string* error) {
+  if (!Check(system, objective, trajectory, dx0, error)) return false;
+  Sweeps s(system, options, objective, trajectory);
+  return s.Forward(dx0, result, error);
 }
 
 }  // namespace mbdae::sens
