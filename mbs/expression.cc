@@ -893,3 +893,238 @@ double Expression::EvaluateTimeDerivatives(const ExpressionInputs& in, double* d
 }
 
 }  // namespace mbdae::mbs
+
+// ---------------------------------------------------------------------------------------
+// Directional evaluation: truncated Taylor polynomials in two variables, t (to second
+// order) and a parameter direction e (to first order): x = sum c[i][j] t^i e^j, i < 3,
+// j < 2. Products are truncated polynomial products; a function of one argument is
+// f(x) = f(v) + f' N + f''/2 N^2 + f'''/6 N^3 with N = x - v (N^4 = 0).
+
+namespace mbdae::mbs {
+namespace {
+
+struct Jet {
+  double c[3][2] = {{0, 0}, {0, 0}, {0, 0}};
+  double v() const { return c[0][0]; }
+  bool constant() const {
+    return c[1][0] == 0 && c[2][0] == 0 && c[0][1] == 0 && c[1][1] == 0 && c[2][1] == 0;
+  }
+};
+
+Jet JLit(double x) { Jet r; r.c[0][0] = x; return r; }
+Jet operator+(const Jet& a, const Jet& b) {
+  Jet r;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 2; ++j) r.c[i][j] = a.c[i][j] + b.c[i][j];
+  return r;
+}
+Jet operator-(const Jet& a, const Jet& b) {
+  Jet r;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 2; ++j) r.c[i][j] = a.c[i][j] - b.c[i][j];
+  return r;
+}
+Jet operator*(double s, const Jet& a) {
+  Jet r;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 2; ++j) r.c[i][j] = a.c[i][j] != 0 ? s * a.c[i][j] : 0.0;
+  return r;
+}
+Jet operator*(const Jet& a, const Jet& b) {
+  Jet r;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 2; ++j) {
+      double s = 0;
+      for (int ia = 0; ia <= i; ++ia)
+        for (int ja = 0; ja <= j; ++ja) {
+          const double x = a.c[ia][ja], y = b.c[i - ia][j - ja];
+          if (x != 0 && y != 0) s += x * y;
+        }
+      r.c[i][j] = s;
+    }
+  return r;
+}
+// f(a) from f and its first three derivatives at a.v(); a term whose power of N is
+// exactly zero contributes zero even if the derivative is infinite.
+Jet JChain(const Jet& a, double f0, double f1, double f2, double f3) {
+  Jet n = a;
+  n.c[0][0] = 0;
+  const Jet n2 = n * n, n3 = n2 * n;
+  Jet r = JLit(f0);
+  r = r + f1 * n;
+  r = r + (0.5 * f2) * n2;
+  r = r + (f3 / 6) * n3;
+  return r;
+}
+// The first three derivatives of a one-argument operation at x.
+double Unary3(int code, double x, double exponent, double* d1, double* d2, double* d3) {
+  double f = 0, a = 0, b = 0, c = 0;
+  switch (code) {
+    case kNeg: f = -x; a = -1; break;
+    case kSin: f = std::sin(x); a = std::cos(x); b = -f; c = -a; break;
+    case kCos: f = std::cos(x); a = -std::sin(x); b = -f; c = -a; break;
+    case kTan: f = std::tan(x); a = 1 + f * f; b = 2 * f * a; c = 2 * a * a + 2 * f * b; break;
+    case kAsin: case kAcos: {
+      const double s = (code == kAsin ? 1.0 : -1.0);
+      f = code == kAsin ? std::asin(x) : std::acos(x);
+      const double g = 1 / std::sqrt(1 - x * x);  // (1 - x^2)^(-1/2)
+      a = s * g;
+      b = s * x * g * g * g;
+      c = s * (g * g * g + 3 * x * x * g * g * g * g * g);
+      break;
+    }
+    case kAtan: f = std::atan(x); a = 1 / (1 + x * x); b = -2 * x * a * a; c = -2 * a * a + 8 * x * x * a * a * a; break;
+    case kSinh: f = std::sinh(x); a = std::cosh(x); b = f; c = a; break;
+    case kCosh: f = std::cosh(x); a = std::sinh(x); b = f; c = a; break;
+    case kTanh: f = std::tanh(x); a = 1 - f * f; b = -2 * f * a; c = -2 * a * a - 2 * f * b; break;
+    case kExp: f = std::exp(x); a = b = c = f; break;
+    case kLog: f = std::log(x); a = 1 / x; b = -a * a; c = 2 * a * a * a; break;
+    case kSqrt: f = std::sqrt(x); a = 0.5 / f; b = -0.5 * a / x; c = -1.5 * b / x; break;
+    case kAbs: f = std::abs(x); a = Sign(x); break;
+    case kSign: f = Sign(x); break;
+    case kPowConst: {
+      const double e = exponent;
+      f = std::pow(x, e);
+      if (e != 0) a = e * std::pow(x, e - 1);
+      if (e != 0 && e != 1) b = e * (e - 1) * std::pow(x, e - 2);
+      if (e != 0 && e != 1 && e != 2) c = e * (e - 1) * (e - 2) * std::pow(x, e - 3);
+      break;
+    }
+    default: assert(false && "not a one-argument operation");
+  }
+  *d1 = a;
+  *d2 = b;
+  *d3 = c;
+  return f;
+}
+Jet JUnary(int code, const Jet& x, double exponent) {
+  double a, b, c;
+  const double f = Unary3(code, x.v(), exponent, &a, &b, &c);
+  return JChain(x, f, a, b, c);
+}
+Jet JDiv(const Jet& a, const Jet& b) {
+  const double v = b.v();
+  return a * JChain(b, 1 / v, -1 / (v * v), 2 / (v * v * v), -6 / (v * v * v * v));
+}
+
+}  // namespace
+
+DirectionalDerivatives Expression::EvaluateDirectional(const ExpressionInputs& in,
+                                                       const ParameterDirection& dir) const {
+  DirectionalDerivatives out;
+  if (program_.empty()) return out;
+  assert(max_stack_ <= kMaxStack);
+  std::array<Jet, kMaxStack> s;
+  int top = -1;
+  for (const Op& op : program_) {
+    switch (op.code) {
+      case kConst: s[++top] = JLit(op.value); break;
+      case kParam:
+        assert(in.parameters != nullptr);
+        s[++top] = JLit(in.parameters[op.index]);
+        if (dir.parameters) s[top].c[0][1] = dir.parameters[op.index];
+        break;
+      case kMeasure: assert(in.measures != nullptr); s[++top] = JLit(in.measures[op.index]); break;
+      case kTime: s[++top] = JLit(in.t); s[top].c[1][0] = 1; break;
+      case kAdd: --top; s[top] = s[top] + s[top + 1]; break;
+      case kSub: --top; s[top] = s[top] - s[top + 1]; break;
+      case kMul: --top; s[top] = s[top] * s[top + 1]; break;
+      case kDiv: --top; s[top] = JDiv(s[top], s[top + 1]); break;
+      case kSpline: {
+        assert(in.splines != nullptr && in.splines[op.index] != nullptr);
+        const Spline& sp = *in.splines[op.index];
+        const double x = s[top].v();
+        double f1 = 0, f2 = 0;
+        const double f = sp.Evaluate(x, &f1, &f2);
+        const Jet arg = s[top];
+        s[top] = JChain(arg, f, f1, f2, sp.ThirdDerivative(x));
+        const Spline* tangent = dir.spline_tangents ? dir.spline_tangents[op.index] : nullptr;
+        if (tangent) {
+          // + e (Y(x) + Y' N + Y''/2 N^2), Y the ordinates' tangent at the argument.
+          double y1 = 0, y2 = 0;
+          const double y0 = tangent->Evaluate(x, &y1, &y2);
+          Jet e;
+          e.c[0][1] = 1;
+          s[top] = s[top] + e * JChain(arg, y0, y1, y2, 0.0);
+        }
+        break;
+      }
+      case kPow:
+      case kPowFn: {
+        --top;
+        const Jet a = s[top], b = s[top + 1];
+        if (b.constant() || a.v() == 0) {
+          s[top] = JUnary(kPowConst, a, b.v());
+        } else {
+          // a^b = exp(b log a)
+          const Jet m = b * JUnary(kLog, a, 0);
+          s[top] = JUnary(kExp, m, 0);
+        }
+        break;
+      }
+      case kAtan2: {
+        --top;
+        const Jet y = s[top], x = s[top + 1];
+        const double x0 = x.v(), y0 = y.v(), r2 = x0 * x0 + y0 * y0;
+        Jet c = JLit(std::atan2(y0, x0));
+        if (r2 > 0 && !(x.constant() && y.constant())) {
+          // atan2(y, x) = atan2(y0, x0) + atan(Y / X) near (x0, y0), with
+          // Y = x0 y - y0 x (value 0) and X = x0 x + y0 y (value r2 > 0).
+          const Jet Y = x0 * y - y0 * x, X = x0 * x + y0 * y;
+          Jet r = JUnary(kAtan, JDiv(Y, X), 0);
+          r.c[0][0] = 0;
+          c = c + r;
+        }
+        s[top] = c;
+        break;
+      }
+      case kMin: --top; if (s[top + 1].v() < s[top].v()) s[top] = s[top + 1]; break;
+      case kMax: --top; if (s[top].v() < s[top + 1].v()) s[top] = s[top + 1]; break;
+      case kStep: {
+        top -= 4;
+        const Jet x = s[top], x0 = s[top + 1], h0 = s[top + 2], x1 = s[top + 3], h1 = s[top + 4];
+        if (x.v() <= x0.v()) {
+          s[top] = h0;
+        } else if (x.v() >= x1.v()) {
+          s[top] = h1;
+        } else {
+          const Jet u = JDiv(x - x0, x1 - x0);
+          const Jet S = u * u * (JLit(3) - 2.0 * u);
+          s[top] = h0 + (h1 - h0) * S;
+        }
+        break;
+      }
+      default: s[top] = JUnary(op.code, s[top], op.value); break;
+    }
+  }
+  assert(top == 0);
+  const Jet& r = s[0];
+  out.value = Evaluate(in);
+  out.d_t = r.c[1][0];
+  out.d_tt = 2 * r.c[2][0];
+  out.dir = r.c[0][1];
+  out.dir_t = r.c[1][1];
+  out.dir_tt = 2 * r.c[2][1];
+  return out;
+}
+
+double Expression::EvaluateSplineOrdinateGradient(const ExpressionInputs& in, int spline,
+                                                  int point) const {
+  if (std::find(splines_used_.begin(), splines_used_.end(), spline) == splines_used_.end()) return 0;
+  assert(in.splines != nullptr && in.splines[spline] != nullptr);
+  const Spline& sp = *in.splines[spline];
+  std::vector<double> dy(sp.x().size(), 0.0);
+  if (point < 0 || point >= static_cast<int>(dy.size())) {
+    throw std::out_of_range("EvaluateSplineOrdinateGradient: point " + std::to_string(point) + " of " +
+                            std::to_string(dy.size()));
+  }
+  dy[point] = 1;
+  const Spline tangent = sp.Tangent(dy);
+  std::vector<const Spline*> tangents(spline + 1, nullptr);
+  tangents[spline] = &tangent;
+  ParameterDirection dir;
+  dir.spline_tangents = tangents.data();
+  return EvaluateDirectional(in, dir).dir;
+}
+
+}  // namespace mbdae::mbs

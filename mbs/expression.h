@@ -68,6 +68,22 @@ struct ExpressionGradient {
   std::array<double, kMaxExpressionArguments> d_parameters;
 };
 
+// A direction in the parameters and spline ordinates, for EvaluateDirectional: the
+// derivative of every parameter value (by SymbolTable parameter index; null: all zero)
+// and, per spline (by SymbolTable spline index; null array or entry: zero), the tangent
+// of its ordinates (Spline::Tangent).
+struct ParameterDirection {
+  const double* parameters = nullptr;
+  const Spline* const* spline_tangents = nullptr;
+};
+
+// The value, its first and second partial derivatives in t (measures held fixed), and
+// the derivatives of these three along a ParameterDirection.
+struct DirectionalDerivatives {
+  double value = 0, d_t = 0, d_tt = 0;
+  double dir = 0, dir_t = 0, dir_tt = 0;
+};
+
 class ExpressionError : public std::exception {
  public:
   ExpressionError(std::string message, int column) : message_(std::move(message)), column_(column) {}
@@ -96,6 +112,17 @@ class Expression {
   // constant. Throws std::logic_error when the expression depends on the state
   // (depends_on_state()); in.measures is not read.
   double EvaluateTimeDerivatives(const ExpressionInputs& in, double* d1, double* d2) const;
+
+  // Value, d/dt, d2/dt2 and their exact derivatives along `dir` (Taylor arithmetic in
+  // two variables, second order in t and first order in the direction), at fixed
+  // measures; for parameter derivatives of motions and force values. Same derivative
+  // conventions as EvaluateTimeDerivatives at non-smooth points.
+  DirectionalDerivatives EvaluateDirectional(const ExpressionInputs& in,
+                                             const ParameterDirection& dir) const;
+  // d(value)/d(ordinate `point` of spline `spline`) (SymbolTable spline index), exact, at
+  // fixed t, measures and parameters; 0 when the expression does not call that spline.
+  // Allocates (it builds the ordinate's tangent spline).
+  double EvaluateSplineOrdinateGradient(const ExpressionInputs& in, int spline, int point) const;
 
   bool is_constant() const;       // refers to no parameter, no measure and not to t
   bool uses_time() const { return uses_time_; }

@@ -129,19 +129,40 @@ class Loader {
     CollectMeasureNames(root["measures"]);
     LoadParameters(root["parameters"]);
     LoadSplines(root["splines"]);
-    if (const YAML::Node gravity = root["gravity"]) model_.gravity = Vector3(gravity, "model", "gravity");
+    if (const YAML::Node gravity = root["gravity"]) {
+      KeepExpressions keep(this, &model_.gravity_expressions);
+      model_.gravity = Vector3(gravity, "model", "gravity");
+    }
     LoadGround(root["ground"]);
     LoadBodies(root["bodies"]);
     LoadMeasures(root["measures"]);
     LoadJoints(root["joints"]);
-    LoadForces(root["forces"]);
-    LoadSimulation(root["simulation"]);
-    return std::move(model_);
     ResolveReactionJoints();
-  }
+    LoadForces(root["forces"]);
     LoadObjectives(root["objectives"]);
+    LoadSimulation(root["simulation"]);
+    model_.load_time_values = std::move(load_time_values_);
+    return std::move(model_);
+  }
 
  private:
+  // While one exists, LoadTimeNumber appends every expression it evaluates to *out and
+  // records its parameter uses as kept (their derivatives are exact; see LoadTimeValue).
+  class KeepExpressions {
+   public:
+    KeepExpressions(const Loader* loader, std::vector<Expression>* out) : loader_(loader) {
+      loader_->keep_ = out;
+    }
+    ~KeepExpressions() { loader_->keep_ = nullptr; }
+    KeepExpressions(const KeepExpressions&) = delete;
+    KeepExpressions& operator=(const KeepExpressions&) = delete;
+   private:
+    const Loader* loader_;
+  };
+  mutable std::vector<Expression>* keep_ = nullptr;
+  mutable std::vector<LoadTimeValue> load_time_values_;
+  mutable OrientationForm orientation_form_ = OrientationForm::kNone;
+
   // ---- locations and failures ------------------------------------------------------
 
   SourceLocation At(const YAML::Mark& mark) const {
@@ -256,6 +277,11 @@ class Loader {
         Fail(node, element, "'" + key + "': measure '" + model_.measures[m].name +
                                 "' is an acceleration; a force may use position and velocity measures only");
       }
+      if (model_.measures[m].type == MeasureType::kReaction) {
+        Fail(node, element, "'" + key + "': measure '" + model_.measures[m].name +
+                                "' is a joint reaction; a force may not use reactions (that would make the "
+                                "system implicit in the multipliers, which is not supported)");
+      }
     }
     return e;
   }
@@ -272,16 +298,17 @@ class Loader {
       Fail(node, element, "'" + key + "': unknown measure '" + name + "'" + Suggest(name, names));
     }
     const Measure& me = model_.measures[m];
+    if (me.type == MeasureType::kReaction) {
+      Fail(node, element, "'" + key + "': measure '" + name + "' is a joint reaction; a " +
+                              (rotational ? "gear" : "motion") +
+                              " constrains position-level kinematic measures only (a reaction would make "
+                              "the system implicit in the multipliers, which is not supported)");
+    }
     if (rotational && me.type != MeasureType::kRotational) {
       Fail(node, element, "'" + key + "': measure '" + name + "' is translational; a gear joins two rotational angle measures");
     }
     if (me.quantity != Quantity::kPosition) {
       Fail(node, element, "'" + key + "': measure '" + name + "' is a " +
-      if (model_.measures[m].type == MeasureType::kReaction) {
-        Fail(node, element, "'" + key + "': measure '" + model_.measures[m].name +
-                                "' is a joint reaction; a force may not use reactions (that would make the "
-                                "system implicit in the multipliers, which is not supported)");
-      }
                               (me.quantity == Quantity::kVelocity ? "velocity" : "acceleration") +
                               "; a " + (rotational ? "gear" : "motion") + " constrains position-level measures only");
     }
@@ -298,12 +325,6 @@ class Loader {
     symbols.parameters = symbols_.parameters;
     symbols.reserved = symbols_.reserved;
     for (const SplineDef& sp : model_.splines) symbols.splines.push_back(sp.name);
-    if (me.type == MeasureType::kReaction) {
-      Fail(node, element, "'" + key + "': measure '" + name + "' is a joint reaction; a " +
-                              (rotational ? "gear" : "motion") +
-                              " constrains position-level kinematic measures only (a reaction would make "
-                              "the system implicit in the multipliers, which is not supported)");
-    }
     symbols.allow_time = true;
     const std::string& text = node.Scalar();
     try {
@@ -316,6 +337,12 @@ class Loader {
   double LoadTimeNumber(const YAML::Node& node, const std::string& element, const std::string& key) const {
     const Expression e = Parse(node, element, key);
     const double value = e.Evaluate(values_.data());
+    // Parameter derivatives: every load-time use of a parameter is recorded; within a
+    // KeepExpressions scope the expression is also kept where the value is used.
+    if (keep_) keep_->push_back(e);
+    if (!e.parameters_used().empty()) {
+      load_time_values_.push_back(LoadTimeValue{e, element, key, keep_ != nullptr, At(node)});
+    }
     if (!std::isfinite(value)) {
       Fail(node, element, "'" + key + "' evaluates to " + Num(value) + " ('" + node.Scalar() + "')");
     }
@@ -358,6 +385,7 @@ class Loader {
   // when within 1e-6 of unit norm), {axis, angle}, {matrix} (orthonormal, det +1).
   Quat Orientation(const YAML::Node& node, const std::string& element, const std::string& key) const {
     if (node.IsSequence()) {
+      orientation_form_ = OrientationForm::kEulerParameters;
       const std::vector<double> v = Numbers(node, element, key, {4});
       Quat e(v[0], v[1], v[2], v[3]);
       const double n = e.norm();
@@ -369,6 +397,9 @@ class Loader {
     if (node.IsMap()) {
       if (node["matrix"]) {
         CheckKeys(node, element, {"matrix"}, key);
+        orientation_form_ = OrientationForm::kMatrix;
+        std::vector<Expression>* const keep = keep_;  // a matrix is not kept: refused
+        keep_ = nullptr;
         const YAML::Node rows = node["matrix"];
         if (!rows.IsSequence() || rows.size() != 3) {
           Fail(rows, element, "'" + key + "': 'matrix' must be a list of 3 rows of 3 numbers");
@@ -387,9 +418,11 @@ class Loader {
         if (!(std::abs(det - 1.0) <= 1e-9)) {
           Fail(rows, element, "'" + key + "': the matrix is not a rotation (determinant " + Num(det) + ", must be +1)");
         }
+        keep_ = keep;
         return QuaternionFromMatrix(A);
       }
       CheckKeys(node, element, {"axis", "angle"}, key);
+      orientation_form_ = OrientationForm::kAxisAngle;
       const Vec3 axis = Vector3(Required(node, element, "axis"), element, key + " axis");
       const double angle = LoadTimeNumber(Required(node, element, "angle"), element, key + " angle");
       if (!(axis.norm() > 0)) Fail(node["axis"], element, "'" + key + "': the rotation axis must not be zero");
@@ -516,7 +549,11 @@ class Loader {
       state[k] = 2;
     };
     for (size_t k = 0; k < n; ++k) visit(static_cast<int>(k));
-    for (size_t k = 0; k < n; ++k) model_.parameters[k].value = values_[k];
+    for (size_t k = 0; k < n; ++k) {
+      model_.parameters[k].value = values_[k];
+      model_.parameters[k].formula = expressions[k];
+      model_.parameters[k].overridden = options_.parameter_overrides.count(names[k]) > 0;
+    }
   }
 
   // ---- splines --------------------------------------------------------------------------
@@ -616,7 +653,11 @@ class Loader {
           return out;
         };
         x = list(xs, "x", &def.x_expressions);
-        y = list(ys, "y", &def.y_expressions);
+        {
+          std::vector<Expression> kept;  // y is kept in def.y_expressions (by `list`)
+          KeepExpressions keep(this, &kept);
+          y = list(ys, "y", &def.y_expressions);
+        }
         if (x.size() != y.size()) {
           Fail(ys, element, "'x' has " + std::to_string(x.size()) + " entries but 'y' has " + std::to_string(y.size()) +
                                 "; they must have the same number");
@@ -726,11 +767,16 @@ class Loader {
       body.inertia = from_geometry->inertia;
     }
     if (const YAML::Node m = node["mass"]) {
+      KeepExpressions keep(this, &body.expressions.mass);
       body.mass = LoadTimeNumber(m, element, "mass");
       if (body.mass < 0) Fail(m, element, "mass must be >= 0, got " + Num(body.mass));
     }
     if (const YAML::Node in = node["inertia"]) {
-      const std::vector<double> v = Numbers(in, element, "inertia", {3, 6});
+      std::vector<double> v;
+      {
+        KeepExpressions keep(this, &body.expressions.inertia);
+        v = Numbers(in, element, "inertia", {3, 6});
+      }
       body.inertia = Mat3::Zero();
       body.inertia.diagonal() << v[0], v[1], v[2];
       if (v.size() == 6) {  // tensor entries [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
@@ -744,10 +790,24 @@ class Loader {
         Fail(in, element, "inertia is not positive semi-definite (smallest eigenvalue " + Num(smallest) + ")");
       }
     }
-    if (const YAML::Node p = node["position"]) body.position = Vector3(p, element, "position");
-    if (const YAML::Node o = node["orientation"]) body.orientation = Orientation(o, element, "orientation");
-    if (const YAML::Node v = node["velocity"]) body.velocity = Vector3(v, element, "velocity");
-    if (const YAML::Node w = node["angular_velocity"]) body.angular_velocity = Vector3(w, element, "angular_velocity");
+    if (const YAML::Node p = node["position"]) {
+      KeepExpressions keep(this, &body.expressions.position);
+      body.position = Vector3(p, element, "position");
+    }
+    if (const YAML::Node o = node["orientation"]) {
+      KeepExpressions keep(this, &body.expressions.orientation);
+      body.orientation = Orientation(o, element, "orientation");
+      body.expressions.orientation_form = orientation_form_;
+      if (orientation_form_ == OrientationForm::kMatrix) body.expressions.orientation.clear();
+    }
+    if (const YAML::Node v = node["velocity"]) {
+      KeepExpressions keep(this, &body.expressions.velocity);
+      body.velocity = Vector3(v, element, "velocity");
+    }
+    if (const YAML::Node w = node["angular_velocity"]) {
+      KeepExpressions keep(this, &body.expressions.angular_velocity);
+      body.angular_velocity = Vector3(w, element, "angular_velocity");
+    }
 
     const int b = static_cast<int>(model_.bodies.size());
     mbs::Marker cm;
@@ -1115,66 +1175,6 @@ class Loader {
     }
   }
 
-  // ---- simulation -------------------------------------------------------------------
-
-  void LoadSimulation(const YAML::Node& node) {
-    if (!node) return;
-    const std::string element = "simulation";
-    SimulationSettings& s = model_.simulation;
-    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida"}, "simulation");
-    auto positive = [&](const YAML::Node& n, const std::string& key) {
-      const double x = LoadTimeNumber(n, element, key);
-      if (!(x > 0)) Fail(n, element, key + " must be > 0, got " + Num(x));
-      return x;
-    };
-    if (const YAML::Node n = node["t_end"]) s.t_end = positive(n, "t_end");
-    if (const YAML::Node n = node["output_step"]) s.output_step = positive(n, "output_step");
-    if (const YAML::Node n = node["integrator"]) {
-      s.integrator = Enum<IntegratorKind>(n, element, "integrator", {{"hht", IntegratorKind::kHht}, {"ida", IntegratorKind::kIda}});
-    }
-    if (const YAML::Node h = node["hht"]) {
-      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form"}, "hht");
-      if (const YAML::Node n = h["alpha"]) {
-        s.hht_alpha = LoadTimeNumber(n, element, "alpha");
-        if (!(s.hht_alpha >= -1.0 / 3.0 - 1e-15 && s.hht_alpha <= 0)) {
-          Fail(n, element, "hht alpha must be in [-1/3, 0], got " + Num(s.hht_alpha));
-        }
-      }
-      if (const YAML::Node n = h["step"]) s.hht_step = positive(n, "hht step");
-      if (const YAML::Node n = h["adaptive"]) s.hht_adaptive = Bool(n, element, "adaptive");
-      if (const YAML::Node n = h["tolerance"]) s.hht_tolerance = positive(n, "hht tolerance");
-      if (const YAML::Node n = h["modified"]) s.hht_modified = Bool(n, element, "modified");
-      if (const YAML::Node n = h["form"]) {
-        s.hht_form = Enum<std::string>(n, element, "form",
-                                       {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});
-      }
-    }
-    if (const YAML::Node i = node["ida"]) {
-      CheckKeys(i, element, {"rtol", "atol"}, "ida");
-      if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
-      if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
-    }
-  }
-
-  std::string file_;
-  // User-force libraries by normalised path: each loaded once and shared.
-  std::map<std::string, std::shared_ptr<const UserForceLibrary>> libraries_;
-  const LoadOptions& options_;
-  Model model_;
-  SymbolTable symbols_;
-  std::vector<double> values_;  // parameter values, index as in symbols_.parameters
-};
-
-}  // namespace
-
-ModelError::ModelError(const SourceLocation& where, const std::string& element, const std::string& what)
-    : std::runtime_error(FormatError(where, element, what)), where_(where), element_(element) {}
-
-Model LoadModel(const std::string& path, const LoadOptions& options) {
-  std::error_code ignored;
-  if (std::filesystem::is_directory(path, ignored)) {
-    throw ModelError(SourceLocation{path, 0, 0}, "model", "cannot read the file: it is a directory");
-  }
   // Reaction measures: the joint by name, and markers i and j from it (motion joints:
   // those of the driven measure; gear joints: those of the second measure).
   void ResolveReactionJoints() {
@@ -1250,6 +1250,68 @@ Model LoadModel(const std::string& path, const LoadOptions& options) {
     }
   }
 
+  // ---- simulation -------------------------------------------------------------------
+
+  void LoadSimulation(const YAML::Node& node) {
+    if (!node) return;
+    const std::string element = "simulation";
+    SimulationSettings& s = model_.simulation;
+    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida"}, "simulation");
+    auto positive = [&](const YAML::Node& n, const std::string& key) {
+      const double x = LoadTimeNumber(n, element, key);
+      if (!(x > 0)) Fail(n, element, key + " must be > 0, got " + Num(x));
+      return x;
+    };
+    if (const YAML::Node n = node["t_end"]) s.t_end = positive(n, "t_end");
+    if (const YAML::Node n = node["output_step"]) s.output_step = positive(n, "output_step");
+    if (const YAML::Node n = node["integrator"]) {
+      s.integrator = Enum<IntegratorKind>(n, element, "integrator", {{"hht", IntegratorKind::kHht}, {"ida", IntegratorKind::kIda}});
+    }
+    if (const YAML::Node h = node["hht"]) {
+      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form"}, "hht");
+      if (const YAML::Node n = h["alpha"]) {
+        s.hht_alpha = LoadTimeNumber(n, element, "alpha");
+        if (!(s.hht_alpha >= -1.0 / 3.0 - 1e-15 && s.hht_alpha <= 0)) {
+          Fail(n, element, "hht alpha must be in [-1/3, 0], got " + Num(s.hht_alpha));
+        }
+      }
+      if (const YAML::Node n = h["step"]) s.hht_step = positive(n, "hht step");
+      if (const YAML::Node n = h["adaptive"]) s.hht_adaptive = Bool(n, element, "adaptive");
+      if (const YAML::Node n = h["tolerance"]) s.hht_tolerance = positive(n, "hht tolerance");
+      if (const YAML::Node n = h["modified"]) s.hht_modified = Bool(n, element, "modified");
+      if (const YAML::Node n = h["form"]) {
+        s.hht_form = Enum<std::string>(n, element, "form",
+                                       {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});
+      }
+    }
+    if (const YAML::Node i = node["ida"]) {
+      CheckKeys(i, element, {"rtol", "atol"}, "ida");
+      if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
+      if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
+    }
+  }
+
+  std::string file_;
+  // User-force libraries by normalised path: each loaded once and shared.
+  std::map<std::string, std::shared_ptr<const UserForceLibrary>> libraries_;
+  const LoadOptions& options_;
+  Model model_;
+  SymbolTable symbols_;
+  // Reaction measures (Model::measures index) and their `joint` node, until the joints are read.
+  std::vector<std::pair<size_t, YAML::Node>> reaction_joints_;
+  std::vector<double> values_;  // parameter values, index as in symbols_.parameters
+};
+
+}  // namespace
+
+ModelError::ModelError(const SourceLocation& where, const std::string& element, const std::string& what)
+    : std::runtime_error(FormatError(where, element, what)), where_(where), element_(element) {}
+
+Model LoadModel(const std::string& path, const LoadOptions& options) {
+  std::error_code ignored;
+  if (std::filesystem::is_directory(path, ignored)) {
+    throw ModelError(SourceLocation{path, 0, 0}, "model", "cannot read the file: it is a directory");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     throw ModelError(SourceLocation{path, 0, 0}, "model", std::string("cannot open the file: ") + std::strerror(errno));
@@ -1267,5 +1329,3 @@ Model LoadModelFromString(const std::string& text, const std::string& file, cons
 }
 
 }  // namespace mbdae::mbs
-  // Reaction measures (Model::measures index) and their `joint` node, until the joints are read.
-  std::vector<std::pair<size_t, YAML::Node>> reaction_joints_;

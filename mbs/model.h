@@ -32,7 +32,42 @@ struct Parameter {
   std::string name;
   double value = 0;         // evaluated (after --set overrides)
   std::string expression;   // as written, if it was an expression
+  // The value as parsed (over the other parameters), for parameter derivatives
+  // (ParameterChain, mbs/sensitivity_parameters.h); `overridden`: set with --set
+  // (LoadOptions::parameter_overrides), then a fixed number whatever `formula` says.
+  Expression formula;
+  bool overridden = false;
   SourceLocation where;
+};
+
+// A value the loader computed once from the parameters (a load-time expression that
+// uses at least one parameter), recorded for parameter derivatives: `kept` values are
+// also stored as expressions where they are used (BodyExpressions, Model::
+// gravity_expressions, SplineDef::y_expressions) and their derivatives are exact; every
+// other one (marker geometry, geometry, gear ratio, spline x points, settings, ...) makes
+// a MultibodySystem refuse a sensitivity parameter it depends on.
+struct LoadTimeValue {
+  Expression expression;
+  std::string element;  // e.g. "body 'arm'"
+  std::string key;      // e.g. "mass", "geometry density"
+  bool kept = false;
+  SourceLocation where;
+};
+
+// How a body's initial orientation was written.
+enum class OrientationForm { kNone, kEulerParameters, kAxisAngle, kMatrix };
+
+// A body's values as written (expressions of the parameters), for exact parameter
+// derivatives; an empty list: not given in the file (the value is a default, or comes
+// from the geometry).
+struct BodyExpressions {
+  std::vector<Expression> mass;     // 0 or 1
+  std::vector<Expression> inertia;  // 0, 3 (Ixx Iyy Izz) or 6 (+ Ixy Ixz Iyz)
+  std::vector<Expression> position, velocity, angular_velocity;  // 0 or 3
+  OrientationForm orientation_form = OrientationForm::kNone;
+  // Euler parameters [e0 e1 e2 e3] (as written, before normalisation), or axis x y z and
+  // angle; empty for a matrix.
+  std::vector<Expression> orientation;
 };
 
 // A marker: a frame fixed on a body (or on ground, body = -1).
@@ -53,6 +88,7 @@ struct Body {
   Vec3 velocity = Vec3::Zero();          // initial, world
   Vec3 angular_velocity = Vec3::Zero();  // initial, world axes
   int cm_marker = -1;           // index of the marker `cm`
+  BodyExpressions expressions;  // the values as written, for parameter derivatives
   SourceLocation where;
 };
 
@@ -71,6 +107,12 @@ struct Measure {
   MeasureFrame frame = MeasureFrame::kJ;
   Quantity quantity = Quantity::kPosition;
   bool offset_initial = false;
+  // Reaction measures: the joint (Model::joints index); torque (rx ry rz) or force
+  // (x y z), the axis in `component` (kX/kY/kZ), in `frame` axes. i and j are the
+  // joint's markers (motion joints: those of the driven measure; gear joints: those of
+  // the second, driven measure); reactions have no quantity and no offset_initial.
+  int joint = -1;
+  bool torque = false;
   SourceLocation where;
 };
 
@@ -107,12 +149,6 @@ enum class ForceFrame { kWorld, kI, kJ };
 struct Force {
   std::string name;
   ForceType type = ForceType::kForce;
-  // Reaction measures: the joint (Model::joints index); torque (rx ry rz) or force
-  // (x y z), the axis in `component` (kX/kY/kZ), in `frame` axes. i and j are the
-  // joint's markers (motion joints: those of the driven measure; gear joints: those of
-  // the second, driven measure); reactions have no quantity and no offset_initial.
-  int joint = -1;
-  bool torque = false;
   int i = -1, j = -1;  // marker indices; j defaults to ground.O
   ForceFrame frame = ForceFrame::kWorld;
   // spring_damper
@@ -147,6 +183,16 @@ struct SplineDef {
   bool depends_on_parameters() const;
 };
 
+// An objective of the model file (`objectives:`): G = integral_0^T integral dt + terminal
+// at T. Expressions over parameters, every measure (any quantity, reactions too), t and
+// spline(NAME, x) (sensitivities/model_objectives.h evaluates them).
+struct Objective {
+  std::string name;
+  Expression integral, terminal;  // over parameters, every measure (any quantity, reactions too), t, spline(NAME, x)
+  bool has_integral = false, has_terminal = false;
+  SourceLocation where;
+};
+
 enum class IntegratorKind { kHht, kIda };
 
 struct SimulationSettings {
@@ -169,6 +215,9 @@ struct Model {
   std::string file;        // path as given
   std::string name;
   Vec3 gravity = Vec3::Zero();
+  std::vector<Expression> gravity_expressions;  // 0 or 3, as written
+  // Every load-time value that uses a parameter, in load order (see LoadTimeValue).
+  std::vector<LoadTimeValue> load_time_values;
   std::vector<Parameter> parameters;
   std::vector<SplineDef> splines;  // in file order
   std::vector<Marker> markers;   // ground markers first (ground.O is index 0), then bodies'
@@ -176,6 +225,7 @@ struct Model {
   std::vector<Measure> measures;
   std::vector<Joint> joints;
   std::vector<Force> forces;
+  std::vector<Objective> objectives;
   SimulationSettings simulation;
 
   int num_coordinates() const { return 7 * static_cast<int>(bodies.size()); }
@@ -183,20 +233,11 @@ struct Model {
 
   // Lookups; -1 if absent.
   int find_parameter(const std::string& name) const;
-// An objective of the model file (`objectives:`): G = integral_0^T integral dt + terminal
-// at T. Expressions over parameters, every measure (any quantity, reactions too), t and
-// spline(NAME, x) (sensitivities/model_objectives.h evaluates them).
-struct Objective {
-  std::string name;
-  Expression integral, terminal;  // over parameters, every measure (any quantity, reactions too), t, spline(NAME, x)
-  bool has_integral = false, has_terminal = false;
-  SourceLocation where;
-};
-
   int find_marker(const std::string& full_name) const;
   int find_body(const std::string& name) const;
   int find_measure(const std::string& name) const;
   int find_spline(const std::string& name) const;
+  int find_objective(const std::string& name) const;
 
   std::vector<double> parameter_values() const;
 };
@@ -210,5 +251,3 @@ struct Objective {
 void ReevaluateSplinePoints(Model* model);
 
 }  // namespace mbdae::mbs
-  std::vector<Objective> objectives;
-  int find_objective(const std::string& name) const;

@@ -159,6 +159,92 @@ double Spline::Evaluate(double x, double* d1, double* d2) const {
   return y_[i] + s * (b + s * (c + d * s));
 }
 
+double Spline::ThirdDerivative(double x) const {
+  assert(!x_.empty());
+  const int n = static_cast<int>(x_.size());
+  if (x < x_[0] || x > x_[n - 1]) return 0;
+  int i = static_cast<int>(std::upper_bound(x_.begin(), x_.end(), x) - x_.begin()) - 1;
+  i = std::clamp(i, 0, n - 2);
+  return 6 * d_[i];
+}
+
+Spline Spline::Tangent(const std::vector<double>& dy) const {
+  assert(!x_.empty());
+  if (dy.size() != x_.size()) {
+    throw std::invalid_argument("Spline::Tangent: " + std::to_string(dy.size()) + " ordinate directions for " +
+                                std::to_string(x_.size()) + " points");
+  }
+  Spline t;
+  t.kind_ = kind_;
+  t.x_ = x_;
+  t.y_ = dy;
+  const int n = static_cast<int>(x_.size());
+  if (kind_ != Interpolation::kAkima || n == 2) {
+    t.Build();  // linear in y: the tangent is the spline through (x, dy)
+    return t;
+  }
+  // Akima: the derivative of Build's formulas along dy (same order of operations).
+  const int intervals = n - 1;
+  std::vector<double> h(intervals), m(intervals), dm(intervals);
+  for (int i = 0; i < intervals; ++i) {
+    h[i] = x_[i + 1] - x_[i];
+    m[i] = (y_[i + 1] - y_[i]) / h[i];
+    dm[i] = (dy[i + 1] - dy[i]) / h[i];
+  }
+  std::vector<double> e(intervals + 4), de(intervals + 4);
+  for (int i = 0; i < intervals; ++i) {
+    e[i + 2] = m[i];
+    de[i + 2] = dm[i];
+  }
+  auto extend = [intervals](std::vector<double>& v) {
+    v[1] = 2 * v[2] - v[3];
+    v[0] = 2 * v[1] - v[2];
+    v[intervals + 2] = 2 * v[intervals + 1] - v[intervals];
+    v[intervals + 3] = 2 * v[intervals + 2] - v[intervals + 1];
+  };
+  extend(e);
+  extend(de);
+  auto sign = [](double u) { return u > 0 ? 1.0 : (u < 0 ? -1.0 : 0.0); };
+  std::vector<double> dt(n);
+  for (int i = 0; i < n; ++i) {
+    const double m_im2 = e[i], m_im1 = e[i + 1], m_i = e[i + 2], m_ip1 = e[i + 3];
+    const double d_im2 = de[i], d_im1 = de[i + 1], d_i = de[i + 2], d_ip1 = de[i + 3];
+    const double w_left = std::abs(m_ip1 - m_i), w_right = std::abs(m_im1 - m_im2);
+    const double dw_left = sign(m_ip1 - m_i) * (d_ip1 - d_i);
+    const double dw_right = sign(m_im1 - m_im2) * (d_im1 - d_im2);
+    const double den = w_left + w_right;
+    if (den == 0) {
+      dt[i] = 0.5 * (d_im1 + d_i);
+    } else {
+      const double num = w_left * m_im1 + w_right * m_i;
+      const double dnum = dw_left * m_im1 + w_left * d_im1 + dw_right * m_i + w_right * d_i;
+      dt[i] = (dnum - num / den * (dw_left + dw_right)) / den;
+    }
+  }
+  t.b_.assign(intervals, 0.0);
+  t.c_.assign(intervals, 0.0);
+  t.d_.assign(intervals, 0.0);
+  for (int i = 0; i < intervals; ++i) {
+    t.b_[i] = dt[i];
+    t.c_[i] = (3 * dm[i] - 2 * dt[i] - dt[i + 1]) / h[i];
+    t.d_[i] = (dt[i] + dt[i + 1] - 2 * dm[i]) / (h[i] * h[i]);
+  }
+  t.slope_first_ = t.b_[0];
+  const int l = intervals - 1;
+  t.slope_last_ = t.b_[l] + h[l] * (2 * t.c_[l] + 3 * t.d_[l] * h[l]);
+  return t;
+}
+
+double Spline::OrdinateDerivative(double x, int point, double* d1, double* d2) const {
+  if (point < 0 || point >= static_cast<int>(x_.size())) {
+    throw std::out_of_range("Spline::OrdinateDerivative: point " + std::to_string(point) + " of " +
+                            std::to_string(x_.size()));
+  }
+  std::vector<double> dy(x_.size(), 0.0);
+  dy[point] = 1;
+  return Tangent(dy).Evaluate(x, d1, d2);
+}
+
 // ---- data files ---------------------------------------------------------------------------
 
 namespace {

@@ -47,6 +47,24 @@ class Spline {
   // extrapolation (see above). The spline must have points (not default-constructed).
   double Evaluate(double x, double* d1 = nullptr, double* d2 = nullptr) const;
 
+  // The third derivative at x (6 d_i on interval i as Evaluate picks it; 0 outside
+  // [x_0, x_n] and for the linear kind), for second-order Taylor arithmetic with a
+  // parameter direction (Expression::EvaluateDirectional).
+  double ThirdDerivative(double x) const;
+
+  // Derivatives with respect to the ordinates y. Tangent(dy) is a spline-shaped object
+  // whose Evaluate(x, d1, d2) and ThirdDerivative(x) give the directional derivatives
+  // d/de of the value, d1, d2 and d3 at a fixed x when y changes to y + e dy (x fixed).
+  // Linear and cubic splines are linear in y, so this is the spline of the same kind
+  // through (x, dy), exactly. Akima's slopes are not linear in y: their derivative is
+  // formed exactly from the weights |m_{i+1} - m_i| with d|u| = sign(u) du; where a weight
+  // is exactly zero (two equal neighbouring secant slopes) the slope is not
+  // differentiable in y and the convention sign(0) = 0 is used (docs/splines.md).
+  Spline Tangent(const std::vector<double>& dy) const;
+  // d(value at x)/d(y_point), and of d1 and d2 (either may be null), exactly
+  // (Tangent with the unit vector of `point`). Throws std::out_of_range for a bad point.
+  double OrdinateDerivative(double x, int point, double* d1 = nullptr, double* d2 = nullptr) const;
+
   Interpolation kind() const { return kind_; }
   const std::vector<double>& x() const { return x_; }
   const std::vector<double>& y() const { return y_; }

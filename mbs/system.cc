@@ -31,6 +31,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -392,6 +393,47 @@ struct MultibodySystem::Impl {
   std::string error;
 
   Impl(const Model& m, std::vector<double> p) : model(m), params(std::move(p)) {}
+
+  // ---- parameter derivatives (see system.h and docs/parameter-derivatives.md) ----
+  std::vector<SensitivityParameter> sens;
+  std::vector<std::vector<double>> chain;      // [k][j] = d value_j / d sens_k
+  std::vector<std::vector<char>> param_dep;    // structural: value_j depends on sens_k
+  std::vector<std::vector<char>> spline_dep;   // structural: spline s's ordinates depend on sens_k
+  std::vector<std::vector<std::vector<double>>> spline_dy;  // [k][s] ordinate direction
+  // Tangent splines (Spline::Tangent) per [k][s], rebuilt when the spline's points change.
+  std::vector<std::vector<Spline>> tangents;
+  std::vector<std::vector<std::vector<double>>> tangent_x, tangent_y;
+  std::vector<std::vector<const Spline*>> tangent_ptrs;
+  Sink psink[dae::kNumParameterMatrices];
+
+  bool Depends(const Expression& e, int k) const {
+    for (int j : e.parameters_used())
+      if (param_dep[k][j]) return true;
+    for (int s : e.splines_used())
+      if (spline_dep[k][s]) return true;
+    return false;
+  }
+  // Total derivative of a parameter-only expression along sens_k.
+  double ParamDerivative(const Expression& e, int k) const {
+    if (e.parameters_used().empty()) return 0;
+    ExpressionInputs in;
+    in.parameters = params.data();
+    ExpressionGradient g;
+    e.EvaluateGradient(in, &g);
+    double d = 0;
+    for (size_t u = 0; u < e.parameters_used().size(); ++u)
+      if (chain[k][e.parameters_used()[u]] != 0) d += g.d_parameters[u] * chain[k][e.parameters_used()[u]];
+    return d;
+  }
+  ParameterDirection Direction(int k) const {
+    ParameterDirection d;
+    d.parameters = chain[k].data();
+    d.spline_tangents = tangent_ptrs[k].empty() ? nullptr : tangent_ptrs[k].data();
+    return d;
+  }
+  void SetupSensitivity();
+  void UpdateTangents();
+  void RunParameters(const dae::EvalInput& in, dae::EvalOutput& out);
 
   int BodyOf(int marker) const { return model.markers[marker].body; }
 
@@ -1411,6 +1453,11 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   }
 
   for (Sink& s : sink) s.End();
+  if (!sens.empty()) {
+    bool any = false;
+    for (double* pm : out.parameter_matrix) any = any || pm != nullptr;
+    if (any) RunParameters(in, out);
+  }
   if (!law_error.empty()) {
     // A user function's error is fatal (negative code): retrying with a smaller step
     // would not change what the library reports.
@@ -1425,6 +1472,383 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
 }
 
 // ---------------------------------------------------------------------------------
+// Parameter derivatives.
+
+namespace {
+
+std::string Where(const SourceLocation& w) {
+  return w.file + (w.line > 0 ? ":" + std::to_string(w.line) : std::string());
+}
+
+}  // namespace
+
+void MultibodySystem::Impl::SetupSensitivity() {
+  const int np = static_cast<int>(sens.size());
+  const int nm = static_cast<int>(model.parameters.size());
+  const int ns = static_cast<int>(model.splines.size());
+  for (const SensitivityParameter& p : sens) {
+    const bool ok = p.parameter >= 0 ? p.parameter < nm
+                                     : (p.spline >= 0 && p.spline < ns && p.point >= 0 &&
+                                        p.point < static_cast<int>(model.splines[p.spline].spline.x().size()));
+    if (!ok) throw std::invalid_argument("sensitivity parameter '" + p.name + "': index out of range");
+  }
+  chain = ParameterChain(model, sens);
+  param_dep.assign(np, std::vector<char>(nm, 0));
+  spline_dep.assign(np, std::vector<char>(ns, 0));
+  spline_dy.assign(np, std::vector<std::vector<double>>(ns));
+  for (int k = 0; k < np; ++k) {
+    // Structural dependence over the formulas (independent of the values).
+    if (sens[k].parameter >= 0) {
+      std::vector<int> state(nm, 0);
+      std::function<bool(int)> dep = [&](int j) -> bool {
+        if (state[j] == 2) return param_dep[k][j] != 0;
+        state[j] = 2;
+        bool d = j == sens[k].parameter;
+        if (!d && !model.parameters[j].overridden)
+          for (int u : model.parameters[j].formula.parameters_used()) d = dep(u) || d;
+        param_dep[k][j] = d;
+        return d;
+      };
+      for (int j = 0; j < nm; ++j) dep(j);
+      for (int sp = 0; sp < ns; ++sp)
+        for (const Expression& e : model.splines[sp].y_expressions)
+          for (int j : e.parameters_used())
+            if (param_dep[k][j]) spline_dep[k][sp] = 1;
+    } else {
+      spline_dep[k][sens[k].spline] = 1;
+    }
+    for (int sp = 0; sp < ns; ++sp)
+      if (spline_dep[k][sp]) spline_dy[k][sp] = SplineOrdinateDirection(model, sens[k], chain[k], sp);
+  }
+  // Refusals: what a selected parameter reaches but is not differentiated.
+  for (int k = 0; k < np; ++k) {
+    const std::string who = "sensitivity parameter '" + sens[k].name + "': ";
+    const std::string tail = "; its parameter derivative is not supported (choose other parameters)";
+    for (const LoadTimeValue& lv : model.load_time_values) {
+      if (!lv.kept && Depends(lv.expression, k))
+        throw std::invalid_argument(who + lv.element + " '" + lv.key + "' (" + Where(lv.where) +
+                                    ") is computed from it at load time" + tail);
+    }
+    for (const Force& f : model.forces) {
+      if (f.type != ForceType::kUser) continue;
+      for (const Expression& e : f.user_parameters)
+        if (Depends(e, k))
+          throw std::invalid_argument(who + "user force '" + f.name + "' (" + Where(f.where) +
+                                      ") has parameters computed from it" + tail);
+    }
+    bool initial = false;
+    for (const Body& b : model.bodies) {
+      const BodyExpressions& x = b.expressions;
+      for (const auto* list : {&x.position, &x.orientation, &x.velocity, &x.angular_velocity})
+        for (const Expression& e : *list) initial = initial || Depends(e, k);
+    }
+    if (!initial) continue;
+    for (size_t f = 0; f < model.forces.size(); ++f)
+      for (int m : force_expr[f].measures)
+        if (model.measures[m].offset_initial)
+          throw std::invalid_argument(who + "force '" + model.forces[f].name + "' (" + Where(model.forces[f].where) +
+                                      ") uses measure '" + model.measures[m].name +
+                                      "' with offset_initial, and the initial state depends on it" + tail);
+    for (const Joint& jt : model.joints)
+      if (jt.type == JointType::kGear)
+        throw std::invalid_argument(who + "gear joint '" + jt.name + "' (" + Where(jt.where) +
+                                    ") is relative to the initial angles, and the initial state depends on it" +
+                                    tail);
+  }
+  tangents.assign(np, std::vector<Spline>(ns));
+  tangent_x.assign(np, std::vector<std::vector<double>>(ns));
+  tangent_y.assign(np, std::vector<std::vector<double>>(ns));
+  tangent_ptrs.assign(np, std::vector<const Spline*>(ns, nullptr));
+  UpdateTangents();
+}
+
+void MultibodySystem::Impl::UpdateTangents() {
+  for (size_t k = 0; k < sens.size(); ++k) {
+    for (size_t sp = 0; sp < model.splines.size(); ++sp) {
+      if (!spline_dep[k][sp]) continue;
+      const Spline& s = model.splines[sp].spline;
+      if (tangent_ptrs[k][sp] && tangent_x[k][sp] == s.x() && tangent_y[k][sp] == s.y()) continue;
+      tangents[k][sp] = s.Tangent(spline_dy[k][sp]);
+      tangent_x[k][sp] = s.x();
+      tangent_y[k][sp] = s.y();
+      tangent_ptrs[k][sp] = &tangents[k][sp];
+    }
+  }
+}
+
+// Writes the parameter matrices (fixed patterns: every entry a structural dependence
+// can reach is added, in the same order at every call).
+void MultibodySystem::Impl::RunParameters(const dae::EvalInput& in, dae::EvalOutput& out) {
+  using dae::ParameterMatrix;
+  const double* q = in.q;
+  const double* v = in.v ? in.v : zeros.data();
+  const double* a = in.a ? in.a : zeros.data();
+  const int np = static_cast<int>(sens.size());
+  const int nb = static_cast<int>(model.bodies.size());
+  UpdateTangents();
+  for (int m = 0; m < dae::kNumParameterMatrices; ++m) psink[m].Begin(out.parameter_matrix[m]);
+  Sink& pMa = psink[static_cast<int>(ParameterMatrix::kMassTimesAccDp)];
+  Sink& pQ = psink[static_cast<int>(ParameterMatrix::kForceDp)];
+  Sink& pC = psink[static_cast<int>(ParameterMatrix::kConstraintDp)];
+  Sink& pCv = psink[static_cast<int>(ParameterMatrix::kConstraintVelDp)];
+  Sink& pG = psink[static_cast<int>(ParameterMatrix::kAccRhsDp)];
+
+  // Bodies: M = blockdiag(m I, 4 G^T J G), Q_r = m g, Q_e = 8 G(e')^T J G(e') e.
+  for (int b = 0; b < nb; ++b) {
+    const Body& body = model.bodies[b];
+    const BodyExpressions& x = body.expressions;
+    const int o = Model::coordinate_offset(b);
+    const Quat e = Eigen::Map<const Quat>(q + o + 3);
+    const Quat ed = Eigen::Map<const Quat>(v + o + 3);
+    const Quat ae = Eigen::Map<const Quat>(a + o + 3);
+    const Mat34 G = GMatrix(e), Gd = GMatrix(ed);
+    for (int k = 0; k < np; ++k) {
+      const bool dm_dep = !x.mass.empty() && Depends(x.mass[0], k);
+      bool dj_dep = false, dg_dep = false;
+      for (const Expression& ex : x.inertia) dj_dep = dj_dep || Depends(ex, k);
+      for (const Expression& ex : model.gravity_expressions) dg_dep = dg_dep || Depends(ex, k);
+      if (!dm_dep && !dj_dep && !dg_dep) continue;
+      const double dm = dm_dep ? ParamDerivative(x.mass[0], k) : 0.0;
+      Mat3 dJ = Mat3::Zero();
+      if (dj_dep) {
+        for (int c = 0; c < 3; ++c) dJ(c, c) = ParamDerivative(x.inertia[c], k);
+        if (x.inertia.size() == 6) {
+          dJ(0, 1) = dJ(1, 0) = ParamDerivative(x.inertia[3], k);
+          dJ(0, 2) = dJ(2, 0) = ParamDerivative(x.inertia[4], k);
+          dJ(1, 2) = dJ(2, 1) = ParamDerivative(x.inertia[5], k);
+        }
+      }
+      Vec3 dg = Vec3::Zero();
+      if (dg_dep)
+        for (int c = 0; c < 3; ++c) dg[c] = ParamDerivative(model.gravity_expressions[c], k);
+      if (dm_dep)
+        for (int c = 0; c < 3; ++c) pMa.Add(o + c, k, dm * a[o + c]);
+      if (dj_dep) {
+        const Quat r = 4 * (G.transpose() * (dJ * (G * ae)));
+        for (int c = 0; c < 4; ++c) pMa.Add(o + 3 + c, k, r[c]);
+      }
+      if (dm_dep || dg_dep) {
+        const Vec3 r = dm * model.gravity + body.mass * dg;
+        for (int c = 0; c < 3; ++c) pQ.Add(o + c, k, r[c]);
+      }
+      if (dj_dep) {
+        const Quat r = 8 * (Gd.transpose() * (dJ * (Gd * e)));
+        for (int c = 0; c < 4; ++c) pQ.Add(o + 3 + c, k, r[c]);
+      }
+    }
+  }
+
+  // Motion joints: C = m(q) - f(t, p): dC/dp = -df/dp, d(C_q v + C_t)/dp = -df'/dp,
+  // dgamma/dp = df''/dp.
+  ExpressionInputs ein;
+  ein.t = in.t;
+  ein.parameters = params.data();
+  ein.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
+  for (const MeasureConstraint& mc : measure_constraints) {
+    if (!mc.motion) continue;
+    const Expression& f = model.joints[mc.joint].value;
+    for (int k = 0; k < np; ++k) {
+      if (!Depends(f, k)) continue;
+      const DirectionalDerivatives d = f.EvaluateDirectional(ein, Direction(k));
+      pC.Add(mc.row, k, -d.dir);
+      pCv.Add(mc.row, k, -d.dir_t);
+      pG.Add(mc.row, k, d.dir_tt);
+    }
+  }
+
+  // Force elements: dQ_local/dp = P df/dE dE/dp (expressions at fixed measures);
+  // bushings: linear in their stiffness and damping.
+  Local l;
+  for (size_t fk = 0; fk < model.forces.size(); ++fk) {
+    const Force& fe = model.forces[fk];
+    if (fe.type == ForceType::kUser) continue;
+    bool any = false;
+    std::vector<char> dep(np, 0);
+    for (int k = 0; k < np; ++k) {
+      if (fe.type == ForceType::kBushing) {
+        for (int c = 0; c < 6; ++c)
+          dep[k] = dep[k] || Depends(fe.bushing_stiffness[c], k) || Depends(fe.bushing_damping[c], k);
+      } else {
+        for (int e = FirstExpression(fe); e < EndExpression(fe); ++e)
+          dep[k] = dep[k] || Depends(ForceExpression(fe, e), k);
+      }
+      any = any || dep[k];
+    }
+    if (!any) continue;
+    Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
+    if (fe.type == ForceType::kBushing) {
+      MarkerPairKinematics km;
+      TwoMarkerInputs(fe, l, &km, nullptr, nullptr);
+      const Vec3 dpos = km.p_i - km.p_j;
+      for (int k = 0; k < np; ++k) {
+        if (!dep[k]) continue;
+        BushingParameters dbp;
+        for (int c = 0; c < 6; ++c) {
+          dbp.stiffness[c] = ParamDerivative(fe.bushing_stiffness[c], k);
+          dbp.damping[c] = ParamDerivative(fe.bushing_damping[c], k);
+        }
+        const ForceTorque y = EvaluateBushing(dbp, km, nullptr);
+        const Vec3 Fs[2] = {y.force, -y.force};
+        const Vec3 Ts[2] = {y.torque, -y.torque - dpos.cross(y.force)};
+        for (int sl = 0; sl < 2; ++sl) {
+          if (l.offset[sl] < 0) continue;
+          const Quat& e = l.e[sl];
+          const Mat34 G = GMatrix(e);
+          const Mat3 A = RotationMatrix(e);
+          const Mat3 S = Skew(model.markers[sl == 0 ? fe.i : fe.j].position);
+          const Quat ge = 2 * G.transpose() * S * A.transpose() * Fs[sl] + 2 * G.transpose() * A.transpose() * Ts[sl];
+          for (int c = 0; c < 3; ++c) pQ.Add(l.offset[sl] + c, k, Fs[sl][c]);
+          for (int c = 0; c < 4; ++c) pQ.Add(l.offset[sl] + 3 + c, k, ge[c]);
+        }
+      }
+      continue;
+    }
+    ForceExpressions& fx = force_expr[fk];
+    const ForceValues fv = ComputeForceValues(static_cast<int>(fk), in.t, q, v, &fx, measure_values.data());
+    Vec3 f;
+    Mat37 dfde;
+    ForceVector(static_cast<int>(fk), fv, l, &f, nullptr, nullptr, &dfde);
+    const bool torque = fe.type == ForceType::kTorque;
+    Eigen::Matrix<double, 14, 3> Pfull = Eigen::Matrix<double, 14, 3>::Zero();
+    for (int sl = 0; sl < 2; ++sl) {
+      if (l.offset[sl] < 0) continue;
+      const double sign = sl == 0 ? 1.0 : -1.0;
+      const Quat& e = l.e[sl];
+      const Mat34 G = GMatrix(e);
+      const Mat3 A = RotationMatrix(e);
+      if (torque) {
+        Pfull.block<4, 3>(7 * sl + 3, 0) = sign * 2 * G.transpose() * A.transpose();
+      } else {
+        const Mat3 S = Skew(model.markers[sl == 0 ? fe.i : fe.j].position);
+        Pfull.block<3, 3>(7 * sl, 0) = sign * Mat3::Identity();
+        Pfull.block<4, 3>(7 * sl + 3, 0) = sign * 2 * G.transpose() * S * A.transpose();
+      }
+    }
+    ExpressionInputs xin;
+    xin.t = in.t;
+    xin.parameters = params.data();
+    xin.measures = measure_values.data();
+    xin.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
+    for (int k = 0; k < np; ++k) {
+      if (!dep[k]) continue;
+      Eigen::Matrix<double, 7, 1> dE = Eigen::Matrix<double, 7, 1>::Zero();
+      for (int e = FirstExpression(fe); e < EndExpression(fe); ++e) {
+        const Expression& ex = ForceExpression(fe, e);
+        if (Depends(ex, k)) dE[e] = ex.EvaluateDirectional(xin, Direction(k)).dir;
+      }
+      const Eigen::Matrix<double, 14, 1> col = Pfull * (dfde * dE);
+      for (int r = 0; r < 14; ++r) {
+        if (l.offset[r / 7] < 0 || (torque && r % 7 < 3)) continue;
+        pQ.Add(l.offset[r / 7] + r % 7, k, col[r]);
+      }
+    }
+  }
+  for (Sink& s : psink) s.End();
+}
+
+// ---------------------------------------------------------------------------------
+
+MultibodySystem::MultibodySystem(const Model& model, std::vector<SensitivityParameter> sensitivity,
+                                 std::vector<double> parameters)
+    : impl_(std::make_unique<Impl>(model, std::move(parameters))) {
+  impl_->Setup();
+  impl_->sens = std::move(sensitivity);
+  impl_->SetupSensitivity();
+  // Record the parameter patterns at a generic state.
+  const int nq = impl_->nq, nb = static_cast<int>(model.bodies.size());
+  std::mt19937 rng(54321);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> q(nq), v(nq), a(nq), w(impl_->nc + 1);
+  for (int b = 0; b < nb; ++b) {
+    for (int k = 0; k < 3; ++k) q[7 * b + k] = 10 * u(rng);
+    Quat e(u(rng), u(rng), u(rng), u(rng));
+    e.normalize();
+    for (int k = 0; k < 4; ++k) q[7 * b + 3 + k] = e[k];
+  }
+  for (auto& x : v) x = u(rng);
+  for (auto& x : a) x = u(rng);
+  for (auto& x : w) x = u(rng);
+  for (Sink& s : impl_->psink) s.StartRecording();
+  dae::EvalInput ein;
+  ein.q = q.data(); ein.v = v.data(); ein.a = a.data(); ein.w = w.data();
+  dae::EvalOutput eout;
+  impl_->RunParameters(ein, eout);
+  const int np = static_cast<int>(impl_->sens.size());
+  for (int m = 0; m < dae::kNumParameterMatrices; ++m) {
+    const auto pm = static_cast<dae::ParameterMatrix>(m);
+    const bool qrows = pm == dae::ParameterMatrix::kMassTimesAccDp || pm == dae::ParameterMatrix::kForceDp ||
+                       pm == dae::ParameterMatrix::kConstraintTDp;
+    impl_->psink[m].Finish(qrows ? nq : impl_->nc, np);
+  }
+}
+
+int MultibodySystem::num_parameters() const { return static_cast<int>(impl_->sens.size()); }
+const dae::CscPattern& MultibodySystem::parameter_pattern(dae::ParameterMatrix m) const {
+  if (impl_->sens.empty()) return dae::MechanicalSystem::parameter_pattern(m);
+  return impl_->psink[static_cast<int>(m)].pattern();
+}
+const std::vector<SensitivityParameter>& MultibodySystem::sensitivity_parameters() const {
+  return impl_->sens;
+}
+
+void MultibodySystem::InitialStateParameterDerivatives(std::vector<double>& dq,
+                                                       std::vector<double>& dv) const {
+  const Impl& im = *impl_;
+  const Model& m = im.model;
+  const int nq = im.nq, np = static_cast<int>(im.sens.size());
+  dq.assign(static_cast<size_t>(nq) * np, 0.0);
+  dv.assign(static_cast<size_t>(nq) * np, 0.0);
+  for (int k = 0; k < np; ++k) {
+    double* dqk = dq.data() + static_cast<size_t>(k) * nq;
+    double* dvk = dv.data() + static_cast<size_t>(k) * nq;
+    auto d3 = [&](const std::vector<Expression>& x) {
+      Vec3 r = Vec3::Zero();
+      if (x.size() == 3)
+        for (int c = 0; c < 3; ++c) r[c] = im.ParamDerivative(x[c], k);
+      return r;
+    };
+    auto values = [&](const std::vector<Expression>& x) {
+      std::vector<double> r;
+      for (const Expression& e : x) r.push_back(e.Evaluate(im.params.data()));
+      return r;
+    };
+    for (size_t b = 0; b < m.bodies.size(); ++b) {
+      const Body& body = m.bodies[b];
+      const BodyExpressions& x = body.expressions;
+      const int o = Model::coordinate_offset(static_cast<int>(b));
+      Eigen::Map<Vec3>(dqk + o) = d3(x.position);
+      Eigen::Map<Vec3>(dvk + o) = d3(x.velocity);
+      Quat de = Quat::Zero();
+      if (x.orientation_form == OrientationForm::kEulerParameters && x.orientation.size() == 4) {
+        // e = w / |w|: de = (I - e e^T) dw / |w|
+        const std::vector<double> w = values(x.orientation);
+        const Quat wq(w[0], w[1], w[2], w[3]);
+        Quat dw;
+        for (int c = 0; c < 4; ++c) dw[c] = im.ParamDerivative(x.orientation[c], k);
+        const double n = wq.norm();
+        const Quat e = wq / n;
+        de = (dw - e * e.dot(dw)) / n;
+      } else if (x.orientation_form == OrientationForm::kAxisAngle && x.orientation.size() == 4) {
+        // e = (cos(a/2), sin(a/2) u / |u|)
+        const std::vector<double> w = values(x.orientation);
+        const Vec3 axis(w[0], w[1], w[2]);
+        const double angle = w[3], n = axis.norm();
+        const Vec3 un = axis / n;
+        Vec3 daxis;
+        for (int c = 0; c < 3; ++c) daxis[c] = im.ParamDerivative(x.orientation[c], k);
+        const double dangle = im.ParamDerivative(x.orientation[3], k);
+        de[0] = -0.5 * std::sin(angle / 2) * dangle;
+        de.tail<3>() = 0.5 * std::cos(angle / 2) * dangle * un +
+                       std::sin(angle / 2) * (daxis - un * un.dot(daxis)) / n;
+      }
+      Eigen::Map<Quat>(dqk + o + 3) = de;
+      // e' = 1/2 E(e)^T omega, E linear in e.
+      const Vec3 dw = d3(x.angular_velocity);
+      Eigen::Map<Quat>(dvk + o + 3) = 0.5 * EMatrix(de).transpose() * body.angular_velocity +
+                                      0.5 * EMatrix(body.orientation).transpose() * dw;
+    }
+  }
+}
 
 MultibodySystem::MultibodySystem(const Model& model, std::vector<double> parameters)
     : impl_(std::make_unique<Impl>(model, std::move(parameters))) {

@@ -12,6 +12,7 @@
 
 #include "dae/mechanical_system.h"
 #include "mbs/model.h"
+#include "mbs/sensitivity_parameters.h"
 
 namespace mbdae::mbs {
 
@@ -19,6 +20,22 @@ class MultibodySystem final : public dae::MechanicalSystem {
  public:
   // parameters: values by Model::parameters index (default: the model's values).
   explicit MultibodySystem(const Model& model, std::vector<double> parameters = {});
+  // With parameter derivatives (dae::MechanicalSystem::num_parameters() =
+  // sensitivity.size(), in that order): Evaluate fills the requested parameter_matrix
+  // outputs exactly, as total derivatives through the chain of dependent parameters
+  // (ParameterChain). Supported dependencies: spring_damper stiffness, damping,
+  // free_length, preload; force/torque values; bushing stiffness and damping; motion
+  // values (C, C_t, gamma); body mass and inertia (M, Q's gravity and velocity-quadratic
+  // terms) and gravity; spline ordinates (inline y points that use a parameter too).
+  // Anything else a selected parameter reaches (a load-time value that is not kept:
+  // marker geometry, geometry, gear ratio, inline spline x, settings; user force
+  // parameters; forces over offset_initial measures and gear joints when the initial
+  // state depends on it) throws std::invalid_argument naming the parameter, the element
+  // and its file:line. The derivatives are evaluated at the system's parameter values
+  // with the chain at the model's values; parameters() must keep the values of
+  // dependent parameters consistent with their formulas.
+  MultibodySystem(const Model& model, std::vector<SensitivityParameter> sensitivity,
+                  std::vector<double> parameters);
 
   int num_coordinates() const override;
   int num_constraints() const override;
@@ -26,6 +43,17 @@ class MultibodySystem final : public dae::MechanicalSystem {
   const std::vector<int>& quaternion_offsets() const override;
   int Evaluate(const dae::EvalInput& in, dae::EvalOutput& out) override;
   const char* last_error() const override;
+  int num_parameters() const override;
+  const dae::CscPattern& parameter_pattern(dae::ParameterMatrix m) const override;
+  const std::vector<SensitivityParameter>& sensitivity_parameters() const;
+
+  // Derivatives of the raw initial state (InitialState, before assembly) with respect to
+  // the sensitivity parameters: dq, dv, nq x num_parameters(), column-major. Positions,
+  // Euler parameters (as written: normalised Euler parameters, or axis and angle),
+  // velocities, and the Euler parameter rates e' = 1/2 E(e)^T omega (through e and
+  // omega). An orientation written as a matrix that uses a selected parameter is refused
+  // at construction.
+  void InitialStateParameterDerivatives(std::vector<double>& dq, std::vector<double>& dv) const;
 
   const Model& model() const;
   // Names: coordinates "body.x" .. "body.e3"; constraints "joint.x" .. "joint.rz",
