@@ -70,12 +70,16 @@ bool HhtOptions::IsValid(std::string* error) const {
   if (max_step > 0 && max_step < min_step) return fail("max_step is smaller than min_step");
   if (adaptive && !(tolerance > 0)) return fail("tolerance must be positive");
   if (!(newton_tolerance > 0)) return fail("newton_tolerance must be positive");
+  if (!(adaptive_newton_factor > 0 && adaptive_newton_factor <= 1))
+    return fail("adaptive_newton_factor must be in (0, 1]");
   if (max_newton_iterations < 1) return fail("max_newton_iterations must be >= 1");
   if (max_steps_per_call < 0) return fail("max_steps_per_call must be >= 0 (0: no limit)");
   if (!(newton_noise_factor >= 1)) return fail("newton_noise_factor must be >= 1");
   if (!(jacobian_reuse_rate > 0 && jacobian_reuse_rate < 1))
     return fail("jacobian_reuse_rate must be in (0, 1)");
   if (max_steps_same_jacobian < 1) return fail("max_steps_same_jacobian must be >= 1");
+  for (double h : replay_steps)
+    if (!(h > 0) || !std::isfinite(h)) return fail("replay_steps must be positive and finite");
   return true;
 }
 
@@ -245,6 +249,7 @@ class HhtIntegrator final : public Integrator {
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
     h_prev_ = 0;
+    replay_next_ = 0;
     h_ = opt_.step;
     if (opt_.max_step > 0) h_ = std::min(h_, opt_.max_step);
     jacobian_fresh_ = false;
@@ -313,6 +318,7 @@ class HhtIntegrator final : public Integrator {
                               ? opt_.max_steps_per_call + (t_target - state_.t) / h_nominal_fixed
                               : std::numeric_limits<double>::infinity();
     double attempts = 0;
+    if (!opt_.replay_steps.empty()) return Replay(t_target);
     while (state_.t < t_target) {
       if (++attempts > budget)
         return Fail("more than " + Num(budget) + " step attempts between t = " + Num(state_.t) +
@@ -363,17 +369,8 @@ class HhtIntegrator final : public Integrator {
         // Fixed step: come back to the nominal step after temporary reductions.
         h_next = std::min(h_nominal_fixed, 2 * h_);
       }
-      Accept(h, last ? t_target : state_.t + h);
       h_ = std::max(h_next, opt_.min_step);
-      if (quad_spec_.size > 0) {
-        // Trapezoidal rule over the accepted step.
-        if (!EvaluateIntegrand(quad_g_new_.data()))
-          return Fail("quadrature integrand failed at t = " + Num(state_.t));
-        for (int i = 0; i < quad_spec_.size; ++i)
-          quad_[i] += 0.5 * h * (quad_g_[i] + quad_g_new_[i]);
-        quad_g_.swap(quad_g_new_);
-      }
-      if (observer_) observer_(state_, h);
+      if (!Accepted(h, last ? t_target : state_.t + h)) return false;
     }
     summary_.status = Summary::Status::kDone;
     summary_.message.clear();
@@ -395,6 +392,44 @@ class HhtIntegrator final : public Integrator {
     summary_.message = why;
     summary_.t_reached = state_.t;
     return false;
+  }
+
+  // AdvanceTo with the steps of opt_.replay_steps.
+  bool Replay(double t_target) {
+    while (state_.t < t_target) {
+      if (replay_next_ >= opt_.replay_steps.size())
+        return Fail("replay: the " + std::to_string(opt_.replay_steps.size()) +
+                    " steps end at t = " + Num(state_.t) + " before " + Num(t_target));
+      const double h = opt_.replay_steps[replay_next_++];
+      const double end = state_.t + h;
+      const bool last = end >= t_target - 1e-9 * h;
+      if (end > t_target + 1e-9 * h)
+        return Fail("replay: step " + std::to_string(replay_next_) + " of size " + Num(h) +
+                    " from t = " + Num(state_.t) + " passes the target " + Num(t_target));
+      const StepResult r = TryStep(h);
+      if (r != StepResult::kOk)
+        return Fail("replay: step " + std::to_string(replay_next_) + " at t = " +
+                    Num(state_.t) + " failed" + (message_.empty() ? "" : ": " + message_));
+      if (!Accepted(h, last ? t_target : end)) return false;
+    }
+    summary_.status = Summary::Status::kDone;
+    summary_.message.clear();
+    return true;
+  }
+
+  // Accept, then the quadrature and the observer.
+  bool Accepted(double h, double t1) {
+    Accept(h, t1);
+    if (quad_spec_.size > 0) {
+      // Trapezoidal rule over the accepted step.
+      if (!EvaluateIntegrand(quad_g_new_.data()))
+        return Fail("quadrature integrand failed at t = " + Num(state_.t));
+      for (int i = 0; i < quad_spec_.size; ++i)
+        quad_[i] += 0.5 * h * (quad_g_[i] + quad_g_new_[i]);
+      quad_g_.swap(quad_g_new_);
+    }
+    if (observer_) observer_(state_, h);
+    return true;
   }
 
   bool EvaluateIntegrand(double* g) {
@@ -557,7 +592,7 @@ class HhtIntegrator final : public Integrator {
   }
 
   double NewtonThreshold() const {
-    return opt_.adaptive ? std::max(opt_.newton_tolerance, 1e-3 * opt_.tolerance)
+    return opt_.adaptive ? std::max(opt_.newton_tolerance, opt_.adaptive_newton_factor * opt_.tolerance)
                          : opt_.newton_tolerance;
   }
 
@@ -724,6 +759,7 @@ class HhtIntegrator final : public Integrator {
   Quadrature quad_spec_;
   std::vector<double> quad_, quad_g_, quad_g_new_;  // integrals; integrand at t_n, t_{n+1}
   StepObserver observer_;
+  size_t replay_next_ = 0;  // next entry of opt_.replay_steps
   double h_ = 0;
   double h_prev_ = 0;  // the last accepted step (0 before the first)
   double jacobian_h_ = 0;

@@ -39,9 +39,12 @@ struct HhtOptions {
   double max_step = 0;  // 0: no limit
   // true: the modified scheme for Euler parameters (Sherif et al. 2019); false: classical.
   bool modified = true;
-  // Newton: stop when the weighted norm of the correction is below this fraction of the
-  // tolerance (adaptive) or below newton_tolerance (fixed step).
+  // Newton: stop when the weighted norm of the correction is below
+  // max(newton_tolerance, adaptive_newton_factor * tolerance) (adaptive) or below
+  // newton_tolerance (fixed step). Gradients of a run (sensitivities/) are exact to this
+  // threshold: their forward runs lower adaptive_newton_factor.
   double newton_tolerance = 1e-12;
+  double adaptive_newton_factor = 1e-3;
   // An iteration whose correction stops contracting (rate > 0.5) while its norm is below
   // newton_noise_factor * the Newton threshold has reached the round-off floor of the
   // linear solve and is accepted as converged (counted in Summary::newton_noise_stops).
@@ -55,6 +58,12 @@ struct HhtOptions {
   // convergence rate stays below this value.
   double jacobian_reuse_rate = 0.2;
   int max_steps_same_jacobian = 20;
+  // Replay: when not empty, the steps taken are exactly these sizes in order (e.g. the
+  // accepted steps of an earlier adaptive run), with no error control and no step
+  // changes: a Newton failure or a sequence that does not meet an AdvanceTo target (to
+  // 1e-9 of a step) fails the run. For finite-difference references of adaptive runs
+  // (the discrete objective of a frozen step sequence).
+  std::vector<double> replay_steps;
 
   bool IsValid(std::string* error) const;
 };
