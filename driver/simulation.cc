@@ -1,5 +1,7 @@
 #include "driver/simulation.h"
 
+#include "sensitivities/model_objectives.h"
+
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
 #include <Eigen/SparseQR>
@@ -370,6 +372,10 @@ std::string SimulationSummary::FullReport() const {
   s << "redundant constraints: " << redundant_constraints.size();
   if (!redundant_constraints.empty()) s << " (" << Join(redundant_constraints) << ")";
   s << "\n";
+  for (const auto& o : objectives)
+    s << "objective " << o.name << ":" << std::string(o.name.size() < 12 ? 12 - o.name.size() : 1, ' ')
+      << Num(o.value) << " (integral " << Num(o.integral) << ", terminal " << Num(o.terminal) << ")\n";
+  if (!objectives_note.empty()) s << "objectives:            " << objectives_note << "\n";
   if (!results_path.empty()) s << "results:               " << results_path << " (" << rows << " rows)\n";
   return s.str();
 }
@@ -482,6 +488,11 @@ OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb)
     rate_defs_.push_back(def);
   }
   previous_rate_.assign(angle_measures_.size(), 0.0);
+  for (const mbs::Measure& meas : model.measures)
+    if (meas.type == mbs::MeasureType::kReaction) {
+      reactions_ = std::make_shared<mbs::ReactionMeasures>(model, asmb.system->parameters());
+      break;
+    }
 }
 
 void OutputRowBuilder::ContinueAfter(const double* measures) {
@@ -507,6 +518,11 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
     AngularVelocityWorld(q + 3, v + 3, out + 10);
   }
   if (nm_ > 0) sys.EvaluateMeasures(t, x.q.data(), x.v.data(), x.a.data(), raw_.data());
+  if (reactions_) {
+    reactions_->parameters() = sys.parameters();
+    if (reactions_->Evaluate(t, x.q.data(), lambda_full_.data(), raw_.data()) != 0)
+      for (int m : reactions_->measures()) raw_[m] = std::numeric_limits<double>::quiet_NaN();
+  }
   // Angles: the turn nearest to the angle predicted from the previous row by the
   // trapezoidal rule on the rate r: phi_1 = phi_0 + dt (r_0 + r_1) / 2. (A cubic Hermite
   // prediction with the rates' derivatives did worse on Andrews' squeezer, whose rates
@@ -594,6 +610,26 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
 
   std::unique_ptr<dae::Integrator> integrator = MakeIntegrator(kept, settings);
   summary.integrator_detail = integrator->name();
+  // The model's objectives: integrands as the integrator's quadrature, terminal values
+  // at the end (sensitivities/model_objectives.h).
+  std::unique_ptr<sens::ModelObjectives> objectives;
+  bool have_quadrature = false;
+  if (!model.objectives.empty()) {
+    objectives = std::make_unique<sens::ModelObjectives>(model, *asmb.system, asmb.kept);
+    dae::Quadrature quad;
+    quad.size = objectives->num_objectives();
+    sens::ModelObjectives* obj = objectives.get();
+    quad.integrand = [obj](double t, const double* q, const double* v, const double* a,
+                           const double* lambda, double* g) {
+      return obj->Integrand(sens::ObjectivePoint{t, q, v, a, lambda}, g);
+    };
+    try {
+      integrator->SetQuadrature(std::move(quad));
+      have_quadrature = true;
+    } catch (const std::logic_error& e) {
+      summary.objectives_note = std::string("not computed: the integrator has no quadrature (") + e.what() + ")";
+    }
+  }
   integrator->Initialize(asmb.x0);
 
   const RunDescription run =
@@ -647,6 +683,31 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
                              : integrator->summary().message.empty()
                                  ? std::string("the integrator stopped without a reason")
                                  : integrator->summary().message;
+  }
+  if (objectives && have_quadrature) {
+    if (!ok) {
+      summary.objectives_note = "not computed: the run did not reach t_end";
+    } else {
+      dae::State x = integrator->state();
+      x.t = settings.t_end;
+      std::vector<double> phi(objectives->num_objectives(), 0.0);
+      const std::vector<double>& integrals = integrator->quadrature();
+      if (objectives->Terminal(sens::ObjectivePoint{x.t, x.q.data(), x.v.data(), x.a.data(), x.lambda.data()},
+                               phi.data()) != 0) {
+        summary.objectives_note = std::string("terminal values failed: ") + objectives->last_error();
+      } else {
+        for (int i = 0; i < objectives->num_objectives(); ++i) {
+          SimulationSummary::ObjectiveValue o;
+          o.name = objectives->names()[i];
+          o.integral = i < static_cast<int>(integrals.size()) ? integrals[i] : 0.0;
+          o.terminal = phi[i];
+          o.value = o.integral + o.terminal;
+          summary.objectives.push_back(o);
+          file.SetGroupAttributes("objectives/" + o.name,
+                                  {{"value", o.value}, {"integral", o.integral}, {"terminal", o.terminal}});
+        }
+      }
+    }
   }
   summary.wall_time =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

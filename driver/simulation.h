@@ -25,6 +25,7 @@
 #include "io/results_file.h"
 #include "mbs/measure_kinematics.h"
 #include "mbs/model.h"
+#include "mbs/reaction.h"
 #include "mbs/system.h"
 
 namespace mbdae::driver {
@@ -122,6 +123,16 @@ struct SimulationSummary {
   double max_velocity_violation = 0;  // max |C_q v + C_t| over the rows
   std::vector<std::string> redundant_constraints;
   std::string results_path;
+  // The model's objectives (Model::objectives) of a run that reached t_end: integral by
+  // the integrator's quadrature (HHT: trapezoidal rule over the accepted steps), terminal
+  // at the final state, value = integral + terminal. Empty when the model has none, the
+  // run failed, or the integrator has no quadrature (then objectives_note says so).
+  struct ObjectiveValue {
+    std::string name;
+    double value = 0, integral = 0, terminal = 0;
+  };
+  std::vector<ObjectiveValue> objectives;
+  std::string objectives_note;
 
   std::string FullReport() const;  // the multi-line summary the program prints
 };
@@ -198,6 +209,8 @@ class OutputRowBuilder {
   bool have_rates_ = false;  // previous_rate_ and previous_t_ belong to the previous row
   bool first_ = true;
   io::ResultsRow row_;
+  // Reaction measures (mbs/reaction.h), if the model has any.
+  std::shared_ptr<mbs::ReactionMeasures> reactions_;
 };
 
 // Integrates from asmb.x0 to settings.t_end, writing one row per output time to a new

@@ -305,6 +305,31 @@ void ResultsFile::SetAttribute(const std::string& name, double value) {
   Check(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), "write attribute " + name);
 }
 
+void ResultsFile::SetGroupAttributes(const std::string& path,
+                                     const std::vector<std::pair<std::string, double>>& attributes) {
+  QuietErrors quiet;
+  const hid_t f = impl_->file.get();
+  const htri_t exists = H5Lexists(f, path.c_str(), H5P_DEFAULT);
+  Handle group;
+  if (exists > 0) {
+    group = Check(H5Gopen2(f, path.c_str(), H5P_DEFAULT), H5Gclose, "open group " + path);
+  } else {
+    Handle lcpl = Check(H5Pcreate(H5P_LINK_CREATE), H5Pclose, "create a property list");
+    Check(H5Pset_create_intermediate_group(lcpl.get(), 1), "set a property list");
+    group = Check(H5Gcreate2(f, path.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
+                  "create group " + path);
+  }
+  for (const auto& [name, value] : attributes) {
+    const htri_t has = H5Aexists(group.get(), name.c_str());
+    if (has > 0) Check(H5Adelete(group.get(), name.c_str()), "delete attribute " + name);
+    Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
+    Handle attr = Check(H5Acreate2(group.get(), name.c_str(), H5T_NATIVE_DOUBLE, space.get(),
+                                   H5P_DEFAULT, H5P_DEFAULT),
+                        H5Aclose, "create attribute " + path + "/" + name);
+    Check(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), "write attribute " + path + "/" + name);
+  }
+}
+
 void ResultsFile::SetAttribute(const std::string& name, long value) {
   QuietErrors quiet;
   impl_->DeleteAttributeIfPresent(name);

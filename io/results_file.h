@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace mbdae::io {
@@ -66,6 +67,10 @@ class ResultsFile {
   void SetAttribute(const std::string& name, long value);
   void SetAttribute(const std::string& name, const char* value) { SetAttribute(name, std::string(value)); }
   void SetAttribute(const std::string& name, const std::vector<std::string>& values);
+  // Added: numeric attributes of the group at `path` ("objectives/G"; created with its
+  // parents if absent), each replacing an attribute of that name.
+  void SetGroupAttributes(const std::string& path,
+                          const std::vector<std::pair<std::string, double>>& attributes);
   void Flush();  // writes the pending rows and flushes the file
   // Added: AppendRow flushes when at least this many seconds (wall clock) passed since
   // the last flush; 0 (the default) flushes after every row. A positive value bounds
