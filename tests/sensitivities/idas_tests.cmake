@@ -1,0 +1,5 @@
+# IDAS forward and adjoint sensitivities against central differences of whole IDA runs.
+add_executable(sens_idas_test ${CMAKE_CURRENT_LIST_DIR}/test_idas_sensitivity.cc)
+target_link_libraries(sens_idas_test PRIVATE mbdae_sensitivities mbdae_dae GTest::gtest_main)
+target_include_directories(sens_idas_test PRIVATE ${PROJECT_SOURCE_DIR})
+gtest_discover_tests(sens_idas_test DISCOVERY_TIMEOUT 60)
