@@ -403,7 +403,7 @@ class IdasSensitivitySolver {
   }
 
   // ---------------------------------------------------------------- forward
-  bool RunForward(const dae::State& x0, const InitialStateDerivatives& dx0,
+  bool RunForward(const dae::State& /*x0*/, const InitialStateDerivatives& dx0,
                   IdasSensitivityResult* result) {
     void* mem = mem_.get();
     VectorArray yS(np_, y_.get()), ypS(np_, y_.get()), qS(np_, yq_.get());
@@ -457,7 +457,6 @@ class IdasSensitivitySolver {
         result->gradient[static_cast<size_t>(i) * np_ + k] = d;
       }
     }
-    (void)x0;
     return true;
   }
 
