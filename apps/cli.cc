@@ -71,11 +71,15 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     cl.command = Command::kCheck;
   else if (first == "convert")
     cl.command = Command::kConvert;
+  else if (first == "gradient")
+    cl.command = Command::kGradient;
   else
     throw UsageError("unknown command '" + first + "'", true);
   ++i;
 
-  const bool sim = cl.command == Command::kSimulate;
+  const bool grad = cl.command == Command::kGradient;
+  // `gradient` takes every option of `simulate` (its forward run is a simulation).
+  const bool sim = cl.command == Command::kSimulate || grad;
   while (i < args.size()) {
     std::string arg = args[i++];
     std::optional<std::string> inline_value;
@@ -96,7 +100,25 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       if (inline_value) throw UsageError(arg + ": takes no value");
     };
     auto only_simulate = [&]() {
-      if (!sim) throw UsageError("option " + arg + " is only for `simulate`", true);
+      if (!sim) throw UsageError("option " + arg + " is only for `simulate` and `gradient`", true);
+    };
+    auto only_gradient = [&]() {
+      if (!grad) throw UsageError("option " + arg + " is only for `gradient`", true);
+    };
+    // Comma-separated names, each non-empty.
+    auto names = [&]() {
+      std::vector<std::string> out;
+      const std::string v = value();
+      size_t start = 0;
+      while (true) {
+        const size_t comma = v.find(',', start);
+        std::string n = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        if (n.empty()) throw UsageError(arg + ": empty name in '" + v + "'");
+        out.push_back(n);
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+      }
+      return out;
     };
 
     if (arg == "--help" || arg == "-h") {
@@ -105,7 +127,7 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--version") {
       no_value();
       cl.version = true;
-    } else if (arg == "--json" && cl.command == Command::kInfo) {
+    } else if (arg == "--json" && (cl.command == Command::kInfo || grad)) {
       no_value();
       cl.json = true;
     } else if (arg == "--set") {
@@ -120,7 +142,7 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       }
     } else if (arg == "-o" || arg == "--output") {
       if (!sim && cl.command != Command::kConvert)
-        throw UsageError("option " + arg + " is only for `simulate` and `convert`", true);
+        throw UsageError("option " + arg + " is only for `simulate`, `gradient` and `convert`", true);
       cl.output_path = value();
       if (cl.output_path.empty()) throw UsageError(arg + ": empty file name");
     } else if (arg == "--integrator") {
@@ -175,6 +197,32 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--atol") {
       only_simulate();
       cl.overrides.ida_atol = number();
+    } else if (arg == "--objective") {
+      only_gradient();
+      for (auto& n : names()) cl.objectives.push_back(n);
+    } else if (arg == "--wrt") {
+      only_gradient();
+      for (auto& n : names()) cl.wrt.push_back(n);
+    } else if (arg == "--wrt-splines") {
+      only_gradient();
+      no_value();
+      cl.wrt_splines = true;
+    } else if (arg == "--method") {
+      only_gradient();
+      const std::string v = value();
+      if (v != "adjoint" && v != "forward" && v != "fd")
+        throw UsageError("--method: expected adjoint, forward or fd, got '" + v + "'");
+      cl.method = v;
+    } else if (arg == "--fd-step") {
+      only_gradient();
+      cl.fd_step = number();
+      if (!(*cl.fd_step > 0 && *cl.fd_step < 1))
+        throw UsageError("--fd-step: expected a relative step in (0, 1), got '" + Num(*cl.fd_step) + "'");
+    } else if (arg == "--trajectory-memory") {
+      only_gradient();
+      cl.trajectory_memory_mib = number();
+      if (!(*cl.trajectory_memory_mib >= 0))
+        throw UsageError("--trajectory-memory: expected MiB >= 0, got '" + Num(*cl.trajectory_memory_mib) + "'");
     } else if (arg == "--quiet" || arg == "-q") {
       no_value();
       cl.quiet = true;

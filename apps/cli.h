@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -25,7 +26,7 @@ class UsageError : public std::runtime_error {
   bool show_usage_;
 };
 
-enum class Command { kSimulate, kInfo, kCheck, kConvert };
+enum class Command { kSimulate, kInfo, kCheck, kConvert, kGradient };
 
 struct CommandLine {
   Command command = Command::kSimulate;
@@ -38,6 +39,13 @@ struct CommandLine {
   std::map<std::string, double> parameter_overrides;
   bool quiet = false;
   bool json = false;
+  // gradient (shared/spec/sensitivities.md): --objective (repeatable, or comma-separated),
+  // --wrt NAME,NAME (repeatable), --wrt-splines, --method, --fd-step (relative),
+  // --trajectory-memory (MiB; 0: store every step).
+  std::vector<std::string> objectives, wrt;
+  bool wrt_splines = false;
+  std::string method = "adjoint";
+  std::optional<double> fd_step, trajectory_memory_mib;
 };
 
 // args without the program name. Options may come before or after MODEL, as

@@ -4,6 +4,7 @@
 //   mbdae info MODEL.yaml [--json]        counts and names
 //   mbdae check MODEL.yaml                load, assemble, check determinacy
 //   mbdae convert MODEL.fds [-o OUT.yaml] the model in this project's format
+//   mbdae gradient MODEL.yaml [options]   dG/dp of the model's objectives
 //
 // MODEL may be a FreeDyn model file (.fds, any letter case) for every command.
 // Output: progress on stderr, the summary and `info`/`check` reports on stdout, errors
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "apps/cli.h"
+#include "driver/gradient.h"
 #include "driver/simulation.h"
 #include "mbs/freedyn.h"
 #include "mbs/loader.h"
@@ -41,6 +43,9 @@ const char* kUsage =
     "  mbdae info MODEL.yaml [--json]\n"
     "  mbdae check MODEL.yaml\n"
     "  mbdae convert MODEL.fds|MODEL.yaml [-o OUT.yaml] [--set NAME=VALUE ...]\n"
+    "  mbdae gradient MODEL.yaml [--objective NAME ...] [--wrt NAME,NAME,...] [--wrt-splines]\n"
+    "                 [--method adjoint|forward|fd] [--fd-step S] [--trajectory-memory MIB]\n"
+    "                 [every simulate option] [--json] [-o RESULTS.h5]\n"
     "  mbdae --help | --version\n";
 
 const char* kHelp =
@@ -71,6 +76,23 @@ const char* kHelp =
     "check: loads and assembles the model and checks that its motion is determined.\n"
     "convert: writes the model in this project's YAML format (format 1) to OUT.yaml, or\n"
     "to stdout without -o; a FreeDyn file (.fds) is translated, a YAML file normalised.\n"
+    "\n"
+    "gradient: values of the model's objectives (`objectives:`) and their gradients with\n"
+    "respect to parameters and spline ordinates (docs/sensitivities.md):\n"
+    "  --objective NAME      an objective (repeatable; default: every objective)\n"
+    "  --wrt NAME,NAME       parameters and spline ordinates SPLINE[i] (default: every\n"
+    "                        parameter)\n"
+    "  --wrt-splines         also every ordinate of every spline\n"
+    "  --method M            adjoint (default: HHT's discrete adjoint, IDAS adjoint),\n"
+    "                        forward (HHT direct differentiation, IDAS forward\n"
+    "                        sensitivities) or fd (central differences of whole runs)\n"
+    "  --fd-step S           fd: relative step, h = S max(|p|, 1) (default 1e-5)\n"
+    "  --trajectory-memory M HHT adjoint: MiB the stored run may take before only\n"
+    "                        checkpoints are kept (default 512; 0: store every step)\n"
+    "  --json                one JSON object on stdout\n"
+    "  -o FILE               the forward run's results file plus /objectives/NAME with\n"
+    "                        the value and the gradient (default: no file)\n"
+    "The simulate options set the forward run.\n"
     "\n"
     "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md).\n"
     "\n"
@@ -172,6 +194,44 @@ int RunSimulate(const CommandLine& cl) {
   return 0;
 }
 
+int RunGradient(const CommandLine& cl) {
+  mbs::Model model = Load(cl);
+  mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
+  driver::GradientRequest request;
+  request.objectives = cl.objectives;
+  request.wrt = cl.wrt;
+  request.wrt_splines = cl.wrt_splines;
+  if (!driver::ParseGradientMethod(cl.method, &request.method))
+    throw UsageError("--method: expected adjoint, forward or fd, got '" + cl.method + "'");
+  if (cl.fd_step) request.fd_step = *cl.fd_step;
+  if (cl.trajectory_memory_mib) request.trajectory_memory = *cl.trajectory_memory_mib * 1024.0 * 1024.0;
+  driver::GradientOptions go;
+  go.model_path = cl.model_path;
+  go.results_path = cl.output_path;
+  go.reload = [&cl](const std::map<std::string, double>& values) {
+    mbs::LoadOptions lo;
+    lo.parameter_overrides = cl.parameter_overrides;
+    for (const auto& [name, value] : values) lo.parameter_overrides[name] = value;
+    return mbs::LoadAnyModel(cl.model_path, lo);
+  };
+  ProgressReporter progress(cl.quiet || cl.json ? ProgressReporter::Mode::kNone
+                            : isatty(STDERR_FILENO) ? ProgressReporter::Mode::kBar
+                                                    : ProgressReporter::Mode::kLines);
+  go.progress = [&progress](double t, double t_end) { progress.Update(t, t_end); };
+  const driver::GradientResult r = driver::ComputeGradient(model, settings, request, go);
+  progress.Finish();
+  if (cl.json)
+    std::cout << r.Json() << "\n" << std::flush;
+  else if (!cl.quiet && r.status == driver::GradientResult::Status::kDone)
+    std::cout << r.Report() << std::flush;
+  if (r.status != driver::GradientResult::Status::kDone) {
+    PrintError("no gradient: " + r.failure_reason +
+               (cl.output_path.empty() ? std::string() : "; the forward run is in " + cl.output_path));
+    return 3;
+  }
+  return 0;
+}
+
 int Run(int argc, char** argv) {
   CommandLine cl = ParseCommandLine(std::vector<std::string>(argv + 1, argv + argc));
   if (cl.help) {
@@ -188,6 +248,7 @@ int Run(int argc, char** argv) {
       case Command::kInfo: return RunInfo(cl);
       case Command::kCheck: return RunCheck(cl);
       case Command::kConvert: return RunConvert(cl);
+      case Command::kGradient: return RunGradient(cl);
     }
   } catch (const driver::InputError& e) {
     throw driver::InputError(NameFile(cl.model_path, e.what()));

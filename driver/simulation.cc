@@ -36,7 +36,9 @@ std::string Join(const std::vector<std::string>& names, const char* sep = ", ") 
   return out;
 }
 
-dae::HhtOptions HhtFrom(const mbs::SimulationSettings& s) {
+}  // namespace
+
+dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   dae::HhtOptions o;
   o.alpha = s.hht_alpha;
   o.step = s.hht_step;
@@ -48,12 +50,14 @@ dae::HhtOptions HhtFrom(const mbs::SimulationSettings& s) {
   return o;
 }
 
-dae::IdaOptions IdaFrom(const mbs::SimulationSettings& s) {
+dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& s) {
   dae::IdaOptions o;
   o.rtol = s.ida_rtol;
   o.atol = s.ida_atol;
   return o;
 }
+
+namespace {
 
 // Names of the joints (or normalisations) owning the listed constraint equations.
 std::vector<std::string> OwnersOf(const mbs::MultibodySystem& system, const std::vector<int>& eqs) {
@@ -100,8 +104,8 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   std::string error;
   // Both integrators' settings are checked, the unused one too: a bad value given on
   // the command line is a mistake whichever integrator runs.
-  if (!HhtFrom(s).IsValid(&error)) throw InputError("hht settings: " + error);
-  if (!IdaFrom(s).IsValid(&error)) throw InputError("ida settings: " + error);
+  if (!HhtOptionsOf(s).IsValid(&error)) throw InputError("hht settings: " + error);
+  if (!IdaOptionsOf(s).IsValid(&error)) throw InputError("ida settings: " + error);
   return s;
 }
 
@@ -240,7 +244,17 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
   if (model.bodies.empty())
     throw InputError(Prefix(model) + "the model has no bodies: there is nothing to simulate");
   Assembly r;
-  r.system = std::make_unique<mbs::MultibodySystem>(model);
+  if (options.sensitivity.empty()) {
+    r.system = std::make_unique<mbs::MultibodySystem>(model);
+  } else {
+    std::vector<double> values;
+    for (const auto& p : model.parameters) values.push_back(p.value);
+    try {
+      r.system = std::make_unique<mbs::MultibodySystem>(model, options.sensitivity, std::move(values));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(e.what());
+    }
+  }
   mbs::MultibodySystem& sys = *r.system;
   const int nq = sys.num_coordinates();
   const int nc = sys.num_constraints();
@@ -249,6 +263,7 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
   x.t = 0;
   sys.InitialState(x.q, x.v);
   const std::vector<double> q0 = x.q, v0 = x.v;
+  r.v_raw = v0;
 
   // Rank decision: the Euler-parameter normalisations first, so that a redundancy is
   // always resolved by setting aside joint equations, never a normalisation (without
@@ -450,10 +465,16 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
 }
 
 std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
-                                                const mbs::SimulationSettings& settings) {
-  if (settings.integrator == mbs::IntegratorKind::kHht)
-    return dae::MakeHhtIntegrator(system, HhtFrom(settings));
-  return dae::MakeIdaIntegrator(system, IdaFrom(settings));
+                                                const mbs::SimulationSettings& settings,
+                                                const std::function<void(dae::HhtOptions&)>& adjust_hht) {
+  if (settings.integrator == mbs::IntegratorKind::kHht) {
+    dae::HhtOptions o = HhtOptionsOf(settings);
+    if (adjust_hht) adjust_hht(o);
+    std::string error;
+    if (!o.IsValid(&error)) throw InputError("hht settings: " + error);
+    return dae::MakeHhtIntegrator(system, o);
+  }
+  return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
 }
 
 OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb)
@@ -608,7 +629,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   summary.redundant_constraints = asmb.redundant_names();
   summary.results_path = options.results_path;
 
-  std::unique_ptr<dae::Integrator> integrator = MakeIntegrator(kept, settings);
+  std::unique_ptr<dae::Integrator> integrator = MakeIntegrator(kept, settings, options.adjust_hht);
   summary.integrator_detail = integrator->name();
   // The model's objectives: integrands as the integrator's quadrature, terminal values
   // at the end (sensitivities/model_objectives.h).
@@ -630,22 +651,29 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
       summary.objectives_note = std::string("not computed: the integrator has no quadrature (") + e.what() + ")";
     }
   }
+  if (options.prepare) options.prepare(*integrator);
   integrator->Initialize(asmb.x0);
 
   const RunDescription run =
       DescribeRun(model, asmb, settings, options.model_path, summary.integrator_detail);
-  io::ResultsFile file(options.results_path, run.layout);
-  file.set_flush_interval(options.flush_interval);
-  WriteRunAttributes(file, run);
+  // Without a results path the rows are computed (violations, progress) but not stored.
+  std::unique_ptr<io::ResultsFile> results;
+  if (!options.results_path.empty()) {
+    results = std::make_unique<io::ResultsFile>(options.results_path, run.layout);
+    results->set_flush_interval(options.flush_interval);
+    WriteRunAttributes(*results, run);
+  }
 
   OutputRowBuilder rows(model, asmb);
+  long rows_computed = 0;
   auto write_row = [&](const dae::State& x) {
     const io::ResultsRow& row = rows.Compute(x);
     if (!std::isnan(row.position_violation))
       summary.max_position_violation = std::max(summary.max_position_violation, row.position_violation);
     if (!std::isnan(row.velocity_violation))
       summary.max_velocity_violation = std::max(summary.max_velocity_violation, row.velocity_violation);
-    file.AppendRow(row);
+    if (results) results->AppendRow(row);
+    ++rows_computed;
     summary.t_reached = x.t;
     if (options.progress) options.progress(x.t, settings.t_end);
   };
@@ -675,7 +703,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   }
 
   summary.counters = integrator->summary();
-  summary.rows = file.rows();
+  summary.rows = results ? results->rows() : rows_computed;
   summary.status = ok ? SimulationSummary::Status::kDone : SimulationSummary::Status::kFailed;
   if (!ok) {
     summary.t_reached = integrator->summary().t_reached;
@@ -703,7 +731,8 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
           o.terminal = phi[i];
           o.value = o.integral + o.terminal;
           summary.objectives.push_back(o);
-          file.SetGroupAttributes("objectives/" + o.name,
+          if (results)
+            results->SetGroupAttributes("objectives/" + o.name,
                                   {{"value", o.value}, {"integral", o.integral}, {"terminal", o.terminal}});
         }
       }
@@ -712,8 +741,10 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   summary.wall_time =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  WriteSummaryAttributes(file, summary);
-  file.Flush();
+  if (results) {
+    WriteSummaryAttributes(*results, summary);
+    results->Flush();
+  }
   return summary;
 }
 

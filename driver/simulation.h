@@ -21,6 +21,8 @@
 #include <vector>
 
 #include "dae/consistent.h"
+#include "dae/hht.h"
+#include "dae/ida.h"
 #include "dae/integrator.h"
 #include "io/results_file.h"
 #include "mbs/measure_kinematics.h"
@@ -55,6 +57,11 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
 
 const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida"
 
+// The integrators' options of the settings. HhtOptionsOf throws InputError for an
+// unknown form.
+dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& settings);
+dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& settings);
+
 // The model assembled at t = 0.
 struct Assembly {
   std::unique_ptr<mbs::MultibodySystem> system;  // all constraint equations
@@ -64,6 +71,7 @@ struct Assembly {
   dae::State x0;                                 // consistent, of kept_system (lambda: nc kept)
   dae::ConsistencyReport report;                 // of the full system
   std::vector<std::string> moved_bodies;         // bodies moved by more than 1e-9 (q or v)
+  std::vector<double> v_raw;                     // the model's initial velocities (before projection)
   double max_position_change = 0;
   double max_velocity_change = 0;
 
@@ -80,6 +88,11 @@ struct AssemblyOptions {
   // tolerance on the equilibrated matrix) is below its size.
   double singularity_tolerance = 1e-10;
   bool check_determinacy = true;
+  // Parameters to differentiate with respect to (mbs/sensitivity_parameters.h): the
+  // system is built with them (MultibodySystem(model, sensitivity, values), which throws
+  // std::invalid_argument for a dependence it cannot differentiate; Assemble turns that
+  // into an InputError). Empty: a plain system.
+  std::vector<mbs::SensitivityParameter> sensitivity;
   bool IsValid(std::string* error) const;
 };
 
@@ -97,12 +110,17 @@ std::vector<std::string> UndeterminedBodies(const mbs::Model& model, dae::Mechan
 
 struct SimulationOptions {
   std::string model_path;    // written as the `model` attribute
-  std::string results_path;  // the file to create (after everything checked out)
+  std::string results_path;  // the file to create (after everything checked out); "": none
   // Called after every output row with (t, t_end).
   std::function<void(double, double)> progress;
   // Seconds of wall time between flushes of the results file (0: after every row). The
   // file is always flushed at the end and when the run fails.
   double flush_interval = 0;
+  // Changes to the HHT options of the settings (e.g. a replayed step sequence, a tighter
+  // Newton threshold), applied before the integrator is made.
+  std::function<void(dae::HhtOptions&)> adjust_hht;
+  // Called with the integrator before it is initialised (e.g. to set a step observer).
+  std::function<void(dae::Integrator&)> prepare;
 };
 
 struct SimulationSummary {
@@ -166,7 +184,8 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
 // The integrator of the settings (HHT or IDA) on `system`, not yet initialised. Throws
 // InputError for settings that cannot be used.
 std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
-                                                const mbs::SimulationSettings& settings);
+                                                const mbs::SimulationSettings& settings,
+                                                const std::function<void(dae::HhtOptions&)>& adjust_hht = {});
 
 // The quantities of one output row beyond the state: body data, measures (angles
 // unwrapped across the rows: the turn is chosen nearest to the angle predicted from the

@@ -305,29 +305,116 @@ void ResultsFile::SetAttribute(const std::string& name, double value) {
   Check(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), "write attribute " + name);
 }
 
+namespace {
+
+// The group at `path`, created with its parents if absent.
+Handle OpenOrCreateGroup(hid_t f, const std::string& path) {
+  const htri_t exists = H5Lexists(f, path.c_str(), H5P_DEFAULT);
+  if (exists > 0) return Check(H5Gopen2(f, path.c_str(), H5P_DEFAULT), H5Gclose, "open group " + path);
+  Handle lcpl = Check(H5Pcreate(H5P_LINK_CREATE), H5Pclose, "create a property list");
+  Check(H5Pset_create_intermediate_group(lcpl.get(), 1), "set a property list");
+  return Check(H5Gcreate2(f, path.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
+               "create group " + path);
+}
+
+void DeleteAttribute(hid_t object, const std::string& name, const std::string& where) {
+  const htri_t has = H5Aexists(object, name.c_str());
+  Check(has < 0 ? -1 : 0, "query attribute " + where);
+  if (has > 0) Check(H5Adelete(object, name.c_str()), "delete attribute " + where);
+}
+
+void WriteNumberAttribute(hid_t object, const std::string& name, double value, const std::string& where) {
+  DeleteAttribute(object, name, where);
+  Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(object, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT,
+                                 H5P_DEFAULT),
+                      H5Aclose, "create attribute " + where);
+  Check(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), "write attribute " + where);
+}
+
+void WriteStringAttribute(hid_t object, const std::string& name, const std::string& value,
+                          const std::string& where) {
+  DeleteAttribute(object, name, where);
+  Handle type = VariableStringType();
+  Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(object, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
+                      H5Aclose, "create attribute " + where);
+  const char* p = value.c_str();
+  Check(H5Awrite(attr.get(), type.get(), &p), "write attribute " + where);
+}
+
+void WriteStringsAttribute(hid_t object, const std::string& name, const std::vector<std::string>& values,
+                           const std::string& where) {
+  DeleteAttribute(object, name, where);
+  Handle type = VariableStringType();
+  hsize_t n = values.size();
+  Handle space = Check(H5Screate_simple(1, &n, nullptr), H5Sclose, "create a dataspace");
+  Handle attr = Check(H5Acreate2(object, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
+                      H5Aclose, "create attribute " + where);
+  if (values.empty()) return;
+  std::vector<const char*> ptrs;
+  for (const auto& s : values) ptrs.push_back(s.c_str());
+  Check(H5Awrite(attr.get(), type.get(), ptrs.data()), "write attribute " + where);
+}
+
+void WriteDoubles(hid_t group, const std::string& name, const std::vector<double>& values,
+                  const std::string& where) {
+  if (H5Lexists(group, name.c_str(), H5P_DEFAULT) > 0)
+    Check(H5Ldelete(group, name.c_str(), H5P_DEFAULT), "delete dataset " + where);
+  hsize_t n = values.size();
+  Handle space = Check(H5Screate_simple(1, &n, nullptr), H5Sclose, "create a dataspace");
+  Handle ds = Check(H5Dcreate2(group, name.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT,
+                               H5P_DEFAULT, H5P_DEFAULT),
+                    H5Dclose, "create dataset " + where);
+  if (values.empty()) return;
+  Check(H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+        "write dataset " + where);
+}
+
+void WriteGroup(hid_t f, const ResultsGroup& g) {
+  Handle group = OpenOrCreateGroup(f, g.path);
+  for (const auto& [name, value] : g.numbers) WriteNumberAttribute(group.get(), name, value, g.path + "/" + name);
+  for (const auto& [name, values] : g.strings)
+    WriteStringsAttribute(group.get(), name, values, g.path + "/" + name);
+  for (const auto& [name, values] : g.datasets) WriteDoubles(group.get(), name, values, g.path + "/" + name);
+}
+
+}  // namespace
+
 void ResultsFile::SetGroupAttributes(const std::string& path,
                                      const std::vector<std::pair<std::string, double>>& attributes) {
   QuietErrors quiet;
-  const hid_t f = impl_->file.get();
-  const htri_t exists = H5Lexists(f, path.c_str(), H5P_DEFAULT);
-  Handle group;
-  if (exists > 0) {
-    group = Check(H5Gopen2(f, path.c_str(), H5P_DEFAULT), H5Gclose, "open group " + path);
-  } else {
-    Handle lcpl = Check(H5Pcreate(H5P_LINK_CREATE), H5Pclose, "create a property list");
-    Check(H5Pset_create_intermediate_group(lcpl.get(), 1), "set a property list");
-    group = Check(H5Gcreate2(f, path.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
-                  "create group " + path);
-  }
-  for (const auto& [name, value] : attributes) {
-    const htri_t has = H5Aexists(group.get(), name.c_str());
-    if (has > 0) Check(H5Adelete(group.get(), name.c_str()), "delete attribute " + name);
-    Handle space = Check(H5Screate(H5S_SCALAR), H5Sclose, "create a dataspace");
-    Handle attr = Check(H5Acreate2(group.get(), name.c_str(), H5T_NATIVE_DOUBLE, space.get(),
-                                   H5P_DEFAULT, H5P_DEFAULT),
-                        H5Aclose, "create attribute " + path + "/" + name);
-    Check(H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &value), "write attribute " + path + "/" + name);
-  }
+  ResultsGroup g;
+  g.path = path;
+  g.numbers = attributes;
+  WriteGroup(impl_->file.get(), g);
+}
+
+void ResultsFile::SetGroupAttribute(const std::string& path, const std::string& name,
+                                    const std::vector<std::string>& values) {
+  QuietErrors quiet;
+  ResultsGroup g;
+  g.path = path;
+  g.strings.emplace_back(name, values);
+  WriteGroup(impl_->file.get(), g);
+}
+
+void ResultsFile::WriteGroupDataset(const std::string& path, const std::string& name,
+                                    const std::vector<double>& values) {
+  QuietErrors quiet;
+  ResultsGroup g;
+  g.path = path;
+  g.datasets.emplace_back(name, values);
+  WriteGroup(impl_->file.get(), g);
+}
+
+void AddToResultsFile(const std::string& path, const std::vector<ResultsGroup>& groups,
+                      const std::vector<std::pair<std::string, std::string>>& root_strings) {
+  QuietErrors quiet;
+  Handle file = Check(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose, "open " + path);
+  for (const ResultsGroup& g : groups) WriteGroup(file.get(), g);
+  for (const auto& [name, value] : root_strings) WriteStringAttribute(file.get(), name, value, name);
+  Check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "flush " + path);
 }
 
 void ResultsFile::SetAttribute(const std::string& name, long value) {

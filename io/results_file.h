@@ -71,6 +71,12 @@ class ResultsFile {
   // parents if absent), each replacing an attribute of that name.
   void SetGroupAttributes(const std::string& path,
                           const std::vector<std::pair<std::string, double>>& attributes);
+  // Added: a string-list attribute of the group at `path`, and a 1-D float64 dataset in
+  // it (both created with the group if absent, replacing one of that name).
+  void SetGroupAttribute(const std::string& path, const std::string& name,
+                         const std::vector<std::string>& values);
+  void WriteGroupDataset(const std::string& path, const std::string& name,
+                         const std::vector<double>& values);
   void Flush();  // writes the pending rows and flushes the file
   // Added: AppendRow flushes when at least this many seconds (wall clock) passed since
   // the last flush; 0 (the default) flushes after every row. A positive value bounds
@@ -83,5 +89,18 @@ class ResultsFile {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Additions to an existing results file (e.g. the gradient of its run): per group
+// (created with its parents if absent) numeric attributes, string-list attributes and
+// 1-D float64 datasets, and string attributes of the root; each replaces one of the
+// same name. Throws std::runtime_error if the file cannot be opened or written.
+struct ResultsGroup {
+  std::string path;  // e.g. "objectives/G"
+  std::vector<std::pair<std::string, double>> numbers;
+  std::vector<std::pair<std::string, std::vector<std::string>>> strings;
+  std::vector<std::pair<std::string, std::vector<double>>> datasets;
+};
+void AddToResultsFile(const std::string& path, const std::vector<ResultsGroup>& groups,
+                      const std::vector<std::pair<std::string, std::string>>& root_strings = {});
 
 }  // namespace mbdae::io

@@ -29,6 +29,11 @@ struct ModelObjectives::Impl {
   const mbs::MultibodySystem& system;
   std::vector<int> kept;
   std::vector<mbs::SensitivityParameter> params;
+  // chain[k][j] = d(model parameter j)/d(params[k]) (mbs::ParameterChain);
+  // spline_dirs[k][s]: d(ordinates of spline s)/d(params[k]) when params[k] is a model
+  // parameter that inline points of spline s use (empty otherwise).
+  std::vector<std::vector<double>> chain;
+  std::vector<std::vector<std::vector<double>>> spline_dirs;
   int nq = 0, nc_full = 0;
   std::vector<std::string> names;
   std::vector<int> used;                 // model measure indices used by some objective
@@ -53,6 +58,19 @@ struct ModelObjectives::Impl {
       if (sp.parameter >= static_cast<int>(model.parameters.size()) ||
           (sp.parameter < 0 && (sp.spline < 0 || sp.spline >= static_cast<int>(model.splines.size()))))
         throw std::invalid_argument("ModelObjectives: sensitivity parameter '" + sp.name + "' out of range");
+    }
+    chain = mbs::ParameterChain(model, params);
+    spline_dirs.assign(params.size(), std::vector<std::vector<double>>(model.splines.size()));
+    for (size_t k = 0; k < params.size(); ++k) {
+      if (params[k].parameter < 0) continue;
+      for (size_t sp = 0; sp < model.splines.size(); ++sp) {
+        if (!model.splines[sp].depends_on_parameters()) continue;
+        std::vector<double> dir =
+            mbs::SplineOrdinateDirection(model, params[k], chain[k], static_cast<int>(sp));
+        bool nonzero = false;
+        for (double d : dir) nonzero = nonzero || d != 0;
+        if (nonzero) spline_dirs[k][sp] = std::move(dir);
+      }
     }
     const int nm = static_cast<int>(model.measures.size());
     std::vector<bool> is_used(nm, false);
@@ -174,8 +192,15 @@ struct ModelObjectives::Impl {
         for (size_t k = 0; k < params.size(); ++k) {
           const mbs::SensitivityParameter& sp = params[k];
           if (sp.parameter >= 0) {
+            // Total derivative through the parameters computed from this one.
             for (size_t u = 0; u < e.parameters_used().size(); ++u)
-              if (e.parameters_used()[u] == sp.parameter) out->dp[k] += w * g.d_parameters[u];
+              out->dp[k] += w * g.d_parameters[u] * chain[k][e.parameters_used()[u]];
+            for (int s : e.splines_used()) {
+              const std::vector<double>& dir = spline_dirs[k][s];
+              for (size_t i = 0; i < dir.size(); ++i)
+                if (dir[i] != 0)
+                  out->dp[k] += w * dir[i] * e.EvaluateSplineOrdinateGradient(in, s, static_cast<int>(i));
+            }
           } else {
             for (int s : e.splines_used())
               if (s == sp.spline) {

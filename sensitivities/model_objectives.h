@@ -23,11 +23,12 @@
 //     central differences of the exact Hessian on the 14 local coordinates (step
 //     1e-5 (1 + |q_k|); error ~1e-9 relative in the tests);
 //   reaction: exact (ReactionMeasures::Derivatives), d/dlambda mapped to the kept rows.
-// dp: for a sensitivity parameter that is a model parameter, the expression's direct
-// partial derivative (parameters_used); a parameter whose value is an expression of
-// other parameters is NOT chained through (its formula is treated as independent: only
-// direct dependence). For a spline ordinate, Expression::EvaluateSplineOrdinateGradient
-// (exact; it allocates).
+// dp: for a sensitivity parameter that is a model parameter, the total derivative of
+// the expression through the parameters computed from it (mbs::ParameterChain) and
+// through the inline points of splines that use it (mbs::SplineOrdinateDirection). For a
+// spline ordinate, Expression::EvaluateSplineOrdinateGradient (exact; it allocates).
+// Not included: the dependence of offset_initial offsets on the parameters (the
+// offsets are the values at the model file's initial state, taken as constants).
 #pragma once
 
 #include <memory>
