@@ -250,6 +250,7 @@ class HhtIntegrator final : public Integrator {
     summary_.t_reached = x0.t;
     h_prev_ = 0;
     replay_next_ = 0;
+    step_index_ = 0;
     h_ = opt_.step;
     if (opt_.max_step > 0) h_ = std::min(h_, opt_.max_step);
     jacobian_fresh_ = false;
@@ -282,6 +283,73 @@ class HhtIntegrator final : public Integrator {
       return;
     }
     if (observer_) observer_(state_, 0.0);
+  }
+
+  void SaveSnapshot(IntegratorSnapshot* out) const override {
+    out->state = state_;
+    const int ng = static_cast<int>(wbar_.size() / 3);
+    out->history.resize(HhtHistory::Size(nq_, ng));
+    double* hist = out->history.data();
+    hist[HhtHistory::kForm] = equilibrium_ ? 1 : 2;
+    hist[HhtHistory::kModified] = opt_.modified ? 1 : 0;
+    hist[HhtHistory::kAlpha] = alpha_;
+    hist[HhtHistory::kHPrev] = h_prev_;
+    hist[HhtHistory::kHNext] = h_;
+    hist[HhtHistory::kStep] = static_cast<double>(step_index_);
+    const std::vector<double>& carried = equilibrium_ ? abar_ : fn_;
+    std::copy(carried.begin(), carried.end(), hist + HhtHistory::kVectors);
+    std::copy(wbar_.begin(), wbar_.end(), hist + HhtHistory::kVectors + nq_);
+  }
+
+  void RestoreSnapshot(const IntegratorSnapshot& x) override {
+    const int ng = static_cast<int>(wbar_.size() / 3);
+    const State& s = x.state;
+    if (static_cast<int>(s.q.size()) != nq_ || static_cast<int>(s.v.size()) != nq_ ||
+        static_cast<int>(s.a.size()) != nq_ || static_cast<int>(s.lambda.size()) != nc_ ||
+        static_cast<int>(x.history.size()) != HhtHistory::Size(nq_, ng))
+      throw std::invalid_argument(
+          "HHT::RestoreSnapshot: the snapshot's sizes (q " + std::to_string(s.q.size()) +
+          ", lambda " + std::to_string(s.lambda.size()) + ", history " +
+          std::to_string(x.history.size()) + ") do not match the system (nq = " +
+          std::to_string(nq_) + ", nc = " + std::to_string(nc_) + ", history " +
+          std::to_string(HhtHistory::Size(nq_, ng)) + ")");
+    const double* hist = x.history.data();
+    if (hist[HhtHistory::kForm] != (equilibrium_ ? 1 : 2) ||
+        hist[HhtHistory::kModified] != (opt_.modified ? 1 : 0) || hist[HhtHistory::kAlpha] != alpha_)
+      throw std::invalid_argument(
+          std::string("HHT::RestoreSnapshot: the snapshot's scheme (form ") +
+          (hist[HhtHistory::kForm] == 1 ? "equilibrium" : "negrut") +
+          (hist[HhtHistory::kModified] == 1 ? ", modified" : ", classical") +
+          ", alpha = " + Num(hist[HhtHistory::kAlpha]) + ") is not this integrator's (form " +
+          HhtFormName(opt_.form) + (opt_.modified ? ", modified" : ", classical") +
+          ", alpha = " + Num(alpha_) + "): other options");
+    const double step = hist[HhtHistory::kStep];
+    if (!(hist[HhtHistory::kHPrev] >= 0) || !(hist[HhtHistory::kHNext] > 0) || !(step >= 0) ||
+        step != std::floor(step))
+      throw std::invalid_argument("HHT::RestoreSnapshot: the snapshot's step sizes or step count are invalid");
+    state_ = s;
+    summary_ = Summary();
+    summary_.status = Summary::Status::kRunning;
+    summary_.t_reached = s.t;
+    h_prev_ = hist[HhtHistory::kHPrev];
+    h_ = hist[HhtHistory::kHNext];
+    step_index_ = static_cast<long>(step);
+    replay_next_ = static_cast<size_t>(step_index_);
+    jacobian_fresh_ = false;
+    jacobian_valid_ = false;
+    jacobian_h_ = 0;
+    steps_with_jacobian_ = 0;
+    std::vector<double>& carried = equilibrium_ ? abar_ : fn_;
+    std::copy(hist + HhtHistory::kVectors, hist + HhtHistory::kVectors + nq_, carried.begin());
+    std::copy(hist + HhtHistory::kVectors + nq_, hist + HhtHistory::kVectors + nq_ + 3 * ng,
+              wbar_.begin());
+    initialized_ = true;
+    std::fill(quad_.begin(), quad_.end(), 0.0);
+    if (quad_spec_.size > 0 && !EvaluateIntegrand(quad_g_.data())) {
+      initialized_ = false;
+      summary_.status = Summary::Status::kFailed;
+      summary_.message = "quadrature integrand failed at the restored state";
+    }
   }
 
   void SetQuadrature(Quadrature quadrature) override {
@@ -736,6 +804,7 @@ class HhtIntegrator final : public Integrator {
     summary_.t_reached = t1;
     summary_.h_last = h;
     h_prev_ = h;
+    ++step_index_;
   }
 
   MechanicalSystem& sys_;
@@ -760,6 +829,7 @@ class HhtIntegrator final : public Integrator {
   std::vector<double> quad_, quad_g_, quad_g_new_;  // integrals; integrand at t_n, t_{n+1}
   StepObserver observer_;
   size_t replay_next_ = 0;  // next entry of opt_.replay_steps
+  long step_index_ = 0;     // accepted steps since Initialize (carried by snapshots)
   double h_ = 0;
   double h_prev_ = 0;  // the last accepted step (0 before the first)
   double jacobian_h_ = 0;

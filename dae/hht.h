@@ -74,6 +74,25 @@ bool ParseHhtForm(const std::string& name, HhtOptions::Form* form);
 
 std::unique_ptr<Integrator> MakeHhtIntegrator(MechanicalSystem& system, const HhtOptions& options);
 
+// The history of an HHT snapshot (IntegratorSnapshot::history; Integrator::SaveSnapshot,
+// RestoreSnapshot): Size(nq, ng) numbers for ng Euler-parameter groups
+// (MechanicalSystem::quaternion_offsets), in this order:
+//   kForm     1 (equilibrium form) or 2 (negrut)
+//   kModified 1 (the modified scheme) or 0
+//   kAlpha    alpha; a restore into an integrator of another form, scheme or alpha throws
+//   kHPrev    the last accepted step (0 before the first): scales abar's history term
+//   kHNext    the step the integrator tries next (the step-size control's state)
+//   kStep     accepted steps since Initialize; a restored integrator replays
+//             HhtOptions::replay_steps from this entry on, so a snapshot of step n of a
+//             run continues, with the run's steps as replay_steps, with step n + 1
+//   kVectors  nq numbers: abar_n (equilibrium form) or F_n = C_q^T lambda_n - Q_n
+//             (negrut), then 3 ng: each group's omegabar'_n (equilibrium form; kept
+//             but unused by negrut)
+struct HhtHistory {
+  enum : int { kForm = 0, kModified, kAlpha, kHPrev, kHNext, kStep, kVectors };
+  static int Size(int nq, int ng) { return kVectors + nq + 3 * ng; }
+};
+
 // The Newton matrix of an HHT step of size h (docs/hht.md), the one the integrator
 // factorises, at the iterate (t_{n+1}, q_{n+1}, v_{n+1}, a_{n+1}, lambda_{n+1}):
 //   kEquilibrium: [ M/(1+alpha) + beta h^2 (K_Ma + K_C - Q_q) - gamma h Q_v , C_q^T/(1+alpha) ]

@@ -2,7 +2,9 @@
 // advanced to a requested time, with counters and the reason it stopped.
 #pragma once
 
+#include <cstddef>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -57,6 +59,20 @@ struct Quadrature {
 // rounding), for callers that replay the steps (sensitivities/).
 using StepObserver = std::function<void(const State& state, double h)>;
 
+// An integrator's whole state between two steps, for checkpointing (sensitivities/):
+// the State plus what the scheme carries from one step to the next (`history`, in a
+// layout the integrator documents; HHT: dae/hht.h). Quadrature integrals are not part
+// of it.
+struct IntegratorSnapshot {
+  State state;
+  std::vector<double> history;
+  // Bytes of the numbers held: 8 (1 + 3 nq + nc + history.size()).
+  size_t bytes() const {
+    return sizeof(double) * (1 + state.q.size() + state.v.size() + state.a.size() +
+                             state.lambda.size() + history.size());
+  }
+};
+
 class Integrator {
  public:
   virtual ~Integrator() = default;
@@ -69,6 +85,26 @@ class Integrator {
   // Sets a step observer before Initialize (an empty function removes it). Throws
   // std::logic_error if the integrator cannot report its steps.
   virtual void SetStepObserver(StepObserver observer);
+
+  // Writes the current state and history into *snapshot (allowed any time after
+  // construction: the sizes are final; before Initialize the values are zeros). No
+  // allocation when *snapshot already has the sizes. Throws std::logic_error if the
+  // integrator cannot.
+  virtual void SaveSnapshot(IntegratorSnapshot* snapshot) const {
+    (void)snapshot;
+    throw std::logic_error(name() + " cannot save its state (SaveSnapshot)");
+  }
+  // Continues from a snapshot taken by an integrator of the same kind on the same system
+  // with the same options, as Initialize does from a state: counters reset, the
+  // quadrature restarts from zero at the snapshot's time, the observer is not called.
+  // The steps that follow are those the saved integrator would have taken, to the
+  // Newton tolerance (the Newton matrix is evaluated afresh). Throws
+  // std::invalid_argument for a snapshot of another size or kind, std::logic_error if
+  // the integrator cannot.
+  virtual void RestoreSnapshot(const IntegratorSnapshot& snapshot) {
+    (void)snapshot;
+    throw std::logic_error(name() + " cannot restore a state (RestoreSnapshot)");
+  }
 
   // Starts at x0, which must be consistent (C = 0, C_q v + C_t = 0, and a, lambda the
   // solution of the acceleration-level system). Resets the counters.

@@ -28,27 +28,6 @@
 
 namespace mbdae::sens {
 
-dae::StepObserver HhtTrajectory::Recorder() {
-  return [this](const dae::State& x, double h) {
-    t_.push_back(x.t);
-    h_.push_back(h);
-    q_.insert(q_.end(), x.q.begin(), x.q.end());
-    v_.insert(v_.end(), x.v.begin(), x.v.end());
-    a_.insert(a_.end(), x.a.begin(), x.a.end());
-    lambda_.insert(lambda_.end(), x.lambda.begin(), x.lambda.end());
-  };
-}
-
-void HhtTrajectory::Clear() {
-  for (auto* v : {&t_, &h_, &q_, &v_, &a_, &lambda_}) v->clear();
-}
-
-size_t HhtTrajectory::memory() const {
-  size_t n = 0;
-  for (auto* v : {&t_, &h_, &q_, &v_, &a_, &lambda_}) n += v->capacity() * sizeof(double);
-  return n;
-}
-
 namespace {
 
 using dae::Matrix;
@@ -162,8 +141,8 @@ class Sweeps {
  public:
   Sweeps(dae::MechanicalSystem& system, const dae::HhtOptions& options,
          ObjectiveFunction& objective, const HhtTrajectory& traj)
-      : sys_(system), obj_(objective), traj_(traj), newton_(system, options),
-        sm_(system), sm_prev_(system) {
+      : sys_(system), obj_(objective), traj_(traj), win_(system, options, traj),
+        newton_(system, options), sm_(system), sm_prev_(system) {
     nq_ = system.num_coordinates();
     nc_ = system.num_constraints();
     np_ = system.num_parameters();
@@ -185,8 +164,14 @@ class Sweeps {
     jac_.assign(newton_.pattern().nnz(), 0.0);
     klu_ = std::make_unique<dae::KluSolver>(newton_.pattern());
     T_.resize(groups_.size());
-    all_.All();
-    all_.force = all_.constraint = all_.constraint_dt = all_.acc_rhs = false;
+    // What the steps' partial derivatives use (not C_q v + C_t and gamma and their
+    // parameter derivatives).
+    for (Matrix m : {Matrix::kMass, Matrix::kMassTimesAccDq, Matrix::kForceDq, Matrix::kForceDv,
+                     Matrix::kConstraintDq, Matrix::kConstraintTDq})
+      all_.matrices[static_cast<int>(m)] = true;
+    for (ParameterMatrix m : {ParameterMatrix::kMassTimesAccDp, ParameterMatrix::kForceDp,
+                              ParameterMatrix::kConstraintTDp, ParameterMatrix::kConstraintDp})
+      all_.parameters[static_cast<int>(m)] = true;
     prev_.matrices[static_cast<int>(Matrix::kForceDq)] = true;
     prev_.matrices[static_cast<int>(Matrix::kForceDv)] = true;
     prev_.matrices[static_cast<int>(Matrix::kConstraintDq)] = true;
@@ -195,7 +180,9 @@ class Sweeps {
     prev_.parameters[static_cast<int>(ParameterMatrix::kConstraintTDp)] = true;
     const int n = nq_ + nc_;
     for (auto* v : {&b_, &mu_, &res_, &tmp_}) v->assign(n, 0.0);
-    for (auto* v : {&rq_, &rv_, &abar_prev_, &abar_cur_}) v->assign(nq_, 0.0);
+    for (auto* v : {&rq_, &rv_}) v->assign(nq_, 0.0);
+    wbar_.assign(3 * groups_.size(), 0.0);
+    for (auto* v : {&obj_vals_, &obj_wts_}) v->assign(no_, 0.0);
   }
 
   bool Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* out, std::string* error);
@@ -203,6 +190,15 @@ class Sweeps {
 
  private:
   int N() const { return traj_.size() - 1; }
+  // Counters and memory into the result.
+  void Finish(HhtSensitivityResult* out) const {
+    out->linear_solves = solves_;
+    out->factorizations = factorizations_;
+    out->recomputed_steps = win_.recomputed_steps();
+    out->recompute_deviation = win_.max_deviation();
+    out->peak_trajectory_bytes =
+        std::max(traj_.peak_memory(), traj_.memory() + win_.peak_bytes());
+  }
   double StepT1(int k) const { return traj_.t(k - 1) + traj_.h(k); }
   double Ratio(int k) const {
     return sc_.eq && k >= 2 && traj_.h(k - 1) > 0 ? traj_.h(k) / traj_.h(k - 1) : 1.0;
@@ -214,25 +210,32 @@ class Sweeps {
     if (n + 1 <= N()) w += 0.5 * traj_.h(n + 1);
     return w;
   }
-  // abar_n and wbar_n (per group) recomputed as the integrator made them.
-  void AccelerationLike(int n, std::vector<double>* abar, std::vector<double>* wbar) const {
-    abar->assign(nq_, 0.0);
-    wbar->assign(3 * groups_.size(), 0.0);
-    const double* a = traj_.a(n);
-    for (int i = 0; i < nq_; ++i)
-      (*abar)[i] = n == 0 || !sc_.eq ? a[i] : (1 + sc_.alpha) * a[i] - sc_.alpha * traj_.a(n - 1)[i];
+  // wbar_n of every group, as the integrator carried it: from the checkpoint when
+  // state n starts a recomputed segment, else 2 G(e_n) a_n (n = 0 or the negrut form)
+  // or 2 ((1 + alpha) G(e_n) a_n - alpha G(e_{n-1}) a_{n-1}).
+  void Wbar(int n, double* wbar) const {
+    if (n == win_first_ && win_.first_wbar()) {
+      std::copy(win_.first_wbar(), win_.first_wbar() + 3 * groups_.size(), wbar);
+      return;
+    }
+    const double* a = win_.a(n);
     for (size_t grp = 0; grp < groups_.size(); ++grp) {
       const int g = groups_[grp];
       double w[3], wp[3];
-      Gx(traj_.q(n) + g, a + g, w);
+      Gx(win_.q(n) + g, a + g, w);
       if (n == 0 || !sc_.eq) {
-        for (int k = 0; k < 3; ++k) (*wbar)[3 * grp + k] = 2 * w[k];
+        for (int k = 0; k < 3; ++k) wbar[3 * grp + k] = 2 * w[k];
       } else {
-        Gx(traj_.q(n - 1) + g, traj_.a(n - 1) + g, wp);
-        for (int k = 0; k < 3; ++k)
-          (*wbar)[3 * grp + k] = 2 * ((1 + sc_.alpha) * w[k] - sc_.alpha * wp[k]);
+        Gx(win_.q(n - 1) + g, win_.a(n - 1) + g, wp);
+        for (int k = 0; k < 3; ++k) wbar[3 * grp + k] = 2 * ((1 + sc_.alpha) * w[k] - sc_.alpha * wp[k]);
       }
     }
+  }
+  // Loads segment i of the window.
+  bool LoadSegment(int i, std::string* error) {
+    if (!win_.Load(i, error)) return false;
+    win_first_ = win_.first(i);
+    return true;
   }
   static void Gx(const double* e, const double* v, double* out) {
     out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
@@ -245,7 +248,7 @@ class Sweeps {
   bool Linearise(int k, std::string* error) {
     const double t1 = StepT1(k), h = traj_.h(k);
     std::string err;
-    if (sm_.Evaluate(all_, t1, traj_.q(k), traj_.v(k), traj_.a(k), traj_.lambda(k), &err) != 0) {
+    if (sm_.Evaluate(all_, t1, win_.q(k), win_.v(k), win_.a(k), win_.lambda(k), &err) != 0) {
       *error = "evaluation at t = " + Num(t1) + " failed: " + err;
       return false;
     }
@@ -257,27 +260,26 @@ class Sweeps {
     }
     if (!sc_.eq) {
       const double tp = k == 1 ? traj_.t(0) : traj_.t(k - 2) + traj_.h(k - 1);
-      if (sm_prev_.Evaluate(prev_, tp, traj_.q(k - 1), traj_.v(k - 1), traj_.a(k - 1),
-                            traj_.lambda(k - 1), &err) != 0) {
+      if (sm_prev_.Evaluate(prev_, tp, win_.q(k - 1), win_.v(k - 1), win_.a(k - 1),
+                            win_.lambda(k - 1), &err) != 0) {
         *error = "evaluation at t = " + Num(tp) + " failed: " + err;
         return false;
       }
     }
     if (!groups_.empty()) {
-      std::vector<double> abar, wbar;
-      AccelerationLike(k - 1, &abar, &wbar);
+      Wbar(k - 1, wbar_.data());
       const double r = Ratio(k);
       for (size_t grp = 0; grp < groups_.size(); ++grp) {
         const int g = groups_[grp];
         double x[23];
         for (int i = 0; i < 4; ++i) {
-          x[i] = traj_.q(k - 1)[g + i];
-          x[4 + i] = traj_.v(k - 1)[g + i];
-          x[8 + i] = traj_.a(k - 1)[g + i];
-          x[15 + i] = traj_.a(k)[g + i];
-          x[19 + i] = traj_.q(k)[g + i];
+          x[i] = win_.q(k - 1)[g + i];
+          x[4 + i] = win_.v(k - 1)[g + i];
+          x[8 + i] = win_.a(k - 1)[g + i];
+          x[15 + i] = win_.a(k)[g + i];
+          x[19 + i] = win_.q(k)[g + i];
         }
-        for (int i = 0; i < 3; ++i) x[12 + i] = wbar[3 * grp + i];
+        for (int i = 0; i < 3; ++i) x[12 + i] = wbar_[3 * grp + i];
         T_[grp] = GroupJacobian(sc_, h, r, x);
       }
     }
@@ -381,6 +383,40 @@ class Sweeps {
     std::snprintf(buf, sizeof buf, "%.6g", x);
     return buf;
   }
+  // The objectives' parts at state n: adds w_n g (+ phi when terminal) to values, and
+  // for each objective j with a part there, lets it add the gradient of w_n g_j
+  // (+ phi_j) into the buffers of target(j) (an ObjectiveGradient), then calls done(j).
+  template <class Target, class Done>
+  bool ObjectiveTerms(int n, bool terminal, double* values, Target target, Done done,
+                      std::string* error) {
+    const ObjectivePoint x = Point(n);
+    const double w = Weight(n);
+    if (w > 0) {
+      if (obj_.Integrand(x, obj_vals_.data()) != 0) return ObjectiveFail(error);
+      for (int j = 0; j < no_; ++j) values[j] += w * obj_vals_[j];
+    }
+    if (terminal) {
+      if (obj_.Terminal(x, obj_vals_.data()) != 0) return ObjectiveFail(error);
+      for (int j = 0; j < no_; ++j) values[j] += obj_vals_[j];
+    }
+    for (int j = 0; j < no_; ++j) {
+      const bool integral = w > 0 && obj_.has_integral(j);
+      const bool term = terminal && obj_.has_terminal(j);
+      if (!integral && !term) continue;
+      ObjectiveGradient g = target(j);
+      std::fill(obj_wts_.begin(), obj_wts_.end(), 0.0);
+      if (integral) {
+        obj_wts_[j] = w;
+        if (obj_.IntegrandGradient(x, obj_wts_.data(), &g) != 0) return ObjectiveFail(error);
+      }
+      if (term) {
+        obj_wts_[j] = 1;
+        if (obj_.TerminalGradient(x, obj_wts_.data(), &g) != 0) return ObjectiveFail(error);
+      }
+      done(j);
+    }
+    return true;
+  }
   bool ObjectiveFail(std::string* error) const {
     *error = std::string("objective evaluation failed: ") + obj_.last_error();
     return false;
@@ -388,16 +424,18 @@ class Sweeps {
   ObjectivePoint Point(int n) const {
     ObjectivePoint x;
     x.t = traj_.t(n);
-    x.q = traj_.q(n);
-    x.v = traj_.v(n);
-    x.a = traj_.a(n);
-    x.lambda = traj_.lambda(n);
+    x.q = win_.q(n);
+    x.v = win_.v(n);
+    x.a = win_.a(n);
+    x.lambda = win_.lambda(n);
     return x;
   }
 
   dae::MechanicalSystem& sys_;
   ObjectiveFunction& obj_;
   const HhtTrajectory& traj_;
+  HhtStateWindow win_;
+  int win_first_ = 0;  // first step of the loaded segment
   dae::HhtNewtonMatrix newton_;
   SystemMatrices sm_, sm_prev_;
   SystemMatrices::Request all_, prev_;
@@ -408,7 +446,8 @@ class Sweeps {
   std::vector<GroupJac> T_;
   std::vector<double> jac_;
   std::unique_ptr<dae::KluSolver> klu_;
-  std::vector<double> b_, mu_, res_, tmp_, rq_, rv_, abar_prev_, abar_cur_;
+  std::vector<double> b_, mu_, res_, tmp_, rq_, rv_, wbar_;
+  std::vector<double> obj_vals_, obj_wts_;  // objective values and weights (no_)
   long solves_ = 0, factorizations_ = 0;
 };
 
@@ -439,42 +478,28 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
   StateVectors sig, prev;
   sig.Resize(nq_, nc_, ng, no_);
   prev.Resize(nq_, nc_, ng, no_);
-  std::vector<double> wts(no_, 0.0), vals(no_), grad_p(np_);
   // Running and terminal terms at state n into sig (objective j: weights e_j).
-  auto add_terms = [&](int n, bool terminal) -> bool {
-    const ObjectivePoint x = Point(n);
-    const double w = Weight(n);
-    if (w > 0) {
-      if (obj_.Integrand(x, vals.data()) != 0) return ObjectiveFail(error);
-      for (int j = 0; j < no_; ++j) out->values[j] += w * vals[j];
-    }
-    if (terminal) {
-      if (obj_.Terminal(x, vals.data()) != 0) return ObjectiveFail(error);
-      for (int j = 0; j < no_; ++j) out->values[j] += vals[j];
-    }
-    for (int j = 0; j < no_; ++j) {
-      std::fill(wts.begin(), wts.end(), 0.0);
+  auto add_terms = [&](int n, bool terminal) {
+    auto target = [&](int j) {
       ObjectiveGradient g;
       g.dq = &sig.q[size_t(j) * nq_];
       g.dv = &sig.v[size_t(j) * nq_];
       g.da = &sig.a[size_t(j) * nq_];
       g.dlambda = &sig.l[size_t(j) * nc_];
       g.dp = &out->gradient[size_t(j) * np_];
-      if (w > 0 && obj_.has_integral(j)) {
-        wts[j] = w;
-        if (obj_.IntegrandGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
-      }
-      if (terminal && obj_.has_terminal(j)) {
-        wts[j] = 1;
-        if (obj_.TerminalGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
-      }
-    }
-    return true;
+      return g;
+    };
+    return ObjectiveTerms(n, terminal, out->values.data(), target, [](int) {}, error);
   };
+  const int segments = win_.segments();
+  if (!LoadSegment(segments - 1, error)) return false;
   if (!add_terms(N, true)) return false;
 
   std::vector<double> sq(nq_), sv(nq_), rhs(nq_ + nc_);
-  for (int k = N; k >= 1; --k) {
+  for (int seg = segments - 1, k = N; k >= 1; --k) {
+    if (k == win_.first(seg)) {
+      if (!LoadSegment(--seg, error)) return false;
+    }
     if (!Linearise(k, error)) return false;
     const double h = traj_.h(k), r = Ratio(k);
     prev.Zero();
@@ -586,15 +611,14 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       for (int grp = 0; grp < ng && sc_.eq; ++grp) {
         const int g = groups_[grp];
         double w1[3], w2[3];
-        Gx(dq + g, traj_.a(0) + g, w1);
-        Gx(traj_.q(0) + g, da + g, w2);
+        Gx(dq + g, win_.a(0) + g, w1);
+        Gx(win_.q(0) + g, da + g, w2);
         for (int i = 0; i < 3; ++i) sum += Swb[3 * grp + i] * 2 * (w1[i] + w2[i]);
       }
       gp[k] += sum;
     }
   }
-  out->linear_solves = solves_;
-  out->factorizations = factorizations_;
+  Finish(out);
   return true;
 }
 
@@ -613,28 +637,19 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
   ds.a = dx0.da;
   ds.ab = dx0.da;
   ds.l = dx0.dlambda;
+  if (!LoadSegment(0, error)) return false;
   for (int k = 0; k < np_; ++k)
     for (int grp = 0; grp < ng && sc_.eq; ++grp) {
       const int g = groups_[grp];
       double w1[3], w2[3];
-      Gx(&ds.q[size_t(k) * nq_ + g], traj_.a(0) + g, w1);
-      Gx(traj_.q(0) + g, &ds.a[size_t(k) * nq_ + g], w2);
+      Gx(&ds.q[size_t(k) * nq_ + g], win_.a(0) + g, w1);
+      Gx(win_.q(0) + g, &ds.a[size_t(k) * nq_ + g], w2);
       for (int i = 0; i < 3; ++i) ds.wb[size_t(k) * 3 * ng + 3 * grp + i] = 2 * (w1[i] + w2[i]);
     }
   // dG += (w grad g + [terminal] grad phi) . ds_n + partials in p.
-  std::vector<double> vals(no_), wts(no_), gq(nq_), gv(nq_), ga(nq_), gl(nc_), gpp(np_);
-  auto add_terms = [&](int n, bool terminal) -> bool {
-    const ObjectivePoint x = Point(n);
-    const double w = Weight(n);
-    if (w > 0) {
-      if (obj_.Integrand(x, vals.data()) != 0) return ObjectiveFail(error);
-      for (int j = 0; j < no_; ++j) out->values[j] += w * vals[j];
-    }
-    if (terminal) {
-      if (obj_.Terminal(x, vals.data()) != 0) return ObjectiveFail(error);
-      for (int j = 0; j < no_; ++j) out->values[j] += vals[j];
-    }
-    for (int j = 0; j < no_; ++j) {
+  std::vector<double> gq(nq_), gv(nq_), ga(nq_), gl(nc_), gpp(np_);
+  auto add_terms = [&](int n, bool terminal) {
+    auto target = [&](int) {
       for (auto* z : {&gq, &gv, &ga, &gl, &gpp}) std::fill(z->begin(), z->end(), 0.0);
       ObjectiveGradient g;
       g.dq = gq.data();
@@ -642,19 +657,9 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       g.da = ga.data();
       g.dlambda = gl.data();
       g.dp = gpp.data();
-      std::fill(wts.begin(), wts.end(), 0.0);
-      bool any = false;
-      if (w > 0 && obj_.has_integral(j)) {
-        wts[j] = w;
-        if (obj_.IntegrandGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
-        any = true;
-      }
-      if (terminal && obj_.has_terminal(j)) {
-        wts[j] = 1;
-        if (obj_.TerminalGradient(x, wts.data(), &g) != 0) return ObjectiveFail(error);
-        any = true;
-      }
-      if (!any) continue;
+      return g;
+    };
+    auto done = [&](int j) {
       for (int k = 0; k < np_; ++k) {
         double sum = gpp[k];
         const size_t oq = size_t(k) * nq_, oc = size_t(k) * nc_;
@@ -663,13 +668,16 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
         for (int c = 0; c < nc_; ++c) sum += gl[c] * ds.l[oc + c];
         out->gradient[size_t(j) * np_ + k] += sum;
       }
-    }
-    return true;
+    };
+    return ObjectiveTerms(n, terminal, out->values.data(), target, done, error);
   };
   if (!add_terms(0, N == 0)) return false;
 
   std::vector<double> dqe(nq_), dve(nq_), rhs(nq_ + nc_), dqa(nq_), dva(nq_);
-  for (int k = 1; k <= N; ++k) {
+  for (int seg = 0, k = 1; k <= N; ++k) {
+    if (k > win_.last(seg)) {
+      if (!LoadSegment(++seg, error)) return false;
+    }
     if (!Linearise(k, error)) return false;
     const double h = traj_.h(k), r = Ratio(k);
     for (int p = 0; p < np_; ++p) {
@@ -748,8 +756,7 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
     std::swap(ds, dn);
     if (!add_terms(k, k == N)) return false;
   }
-  out->linear_solves = solves_;
-  out->factorizations = factorizations_;
+  Finish(out);
   return true;
 }
 
@@ -762,7 +769,7 @@ bool Check(dae::MechanicalSystem& system, ObjectiveFunction& objective,
     return false;
   }
   if (traj.size() < 1) {
-    *error = "the trajectory is empty (record the run with HhtTrajectory::Recorder)";
+    *error = "the trajectory is empty (record the run with HhtTrajectory::Attach or Recorder)";
     return false;
   }
   if (dx0.np != np || dx0.dq.size() != size_t(nq) * np || dx0.dv.size() != size_t(nq) * np ||
