@@ -24,6 +24,8 @@
  *   read stored outputs, the state, vectors and matrices -> mbdae_model_free.
  *   Changing a parameter or spline points marks the model for re-assembly: the next
  *   solve call starts again from t = 0 (stored outputs are cleared then).
+ *   Gradients of the model's objectives (mbdae_gradient) run their own simulations at
+ *   any point of this life and leave the stored outputs and the state alone.
  */
 #ifndef MBDAE_H_
 #define MBDAE_H_
@@ -78,7 +80,12 @@ typedef enum {
   MBDAE_MEASURES = 6,
   MBDAE_PARAMETERS = 7,
   MBDAE_SPLINES = 8,
-  MBDAE_OUTPUTS = 9       /* stored output rows (no names) */
+  MBDAE_OUTPUTS = 9,      /* stored output rows (no names) */
+  MBDAE_OBJECTIVES = 10,  /* the model's objectives (`objectives:` of the model file) */
+  MBDAE_GRADIENT_OBJECTIVES = 11, /* the rows of the stored gradient (mbdae_gradient): the
+                                     objectives it was computed for; 0 before the first */
+  MBDAE_GRADIENT_WRT = 12 /* the columns of the stored gradient: what it was taken with
+                             respect to, "k" or "SPLINE[i]"; 0 before the first */
 } mbdae_kind;
 
 /* MULTIPLIERS and REDUNDANT assemble the model if needed. */
@@ -110,7 +117,15 @@ mbdae_status mbdae_set_spline_points(mbdae_model* model, int index, const double
  * expressions). Validated as the program validates its options: an unknown key is
  * MBDAE_ERROR_ARGUMENT, a bad value MBDAE_ERROR_INPUT (the old value stays). Takes
  * effect at the next assembly (set before solving): like a parameter, it marks the
- * model for re-assembly. */
+ * model for re-assembly.
+ * The settings of mbdae_gradient (they do not mark the model for re-assembly):
+ * "gradient.fd_step" (fd: the step of p is fd_step * max(|p|, 1); default 1e-5),
+ * "gradient.newton_factor" (HHT, exact methods: the adaptive Newton threshold of the
+ * forward run is max(newton tolerance, newton_factor * hht.tolerance); default 1e-6),
+ * "gradient.trajectory_memory" (HHT adjoint: bytes the stored run may take before only
+ * checkpoints are kept; 0 = store every step; default 536870912),
+ * "gradient.ida_checkpoint_steps" (IDA adjoint: forward steps between two checkpoints,
+ * an integer >= 1; default 200). */
 mbdae_status mbdae_set_option(mbdae_model* model, const char* key, const char* value);
 /* The current value as text into buf (size bytes, NUL-terminated). */
 mbdae_status mbdae_get_option(mbdae_model* model, const char* key, char* buf, size_t size);
@@ -234,6 +249,76 @@ typedef enum { MBDAE_CSC = 0, MBDAE_CSR = 1 } mbdae_sparse_format;
 mbdae_status mbdae_get_matrix(mbdae_model* model, const mbdae_block* blocks, int num_blocks,
                               int rows, int cols, mbdae_sparse_format format, int* nnz,
                               int* ptr, int* idx, double* val);
+
+/* ---- Objectives and their gradients ------------------------------------------------- */
+
+/* Values G_i of the model's objectives (MBDAE_OBJECTIVES; `objectives:` of the model file,
+ * G = integral over [0, t_end] + terminal value at t_end) and their gradients dG_i/dp_k
+ * with respect to parameters ("k") and spline ordinates ("SPLINE[i]", 0-based point
+ * index), with the model's current parameters, spline points and options: the pipeline
+ * of `mbdae gradient` (docs/sensitivities.md).
+ *
+ * method: "adjoint" (NULL = "adjoint"; HHT: the discrete adjoint of the run, IDA: IDAS
+ *   adjoint sensitivities), "forward" (HHT: direct differentiation, IDA: IDAS forward
+ *   sensitivities) or "fd" (central differences of whole runs; the step of each entry is
+ *   read back with MBDAE_GRAD_FD_STEPS; option "gradient.fd_step").
+ * objectives: num_objectives names (NULL or num_objectives = 0: every objective, in the
+ *   model's order). The rows of the result are in the model's order whatever the order
+ *   given.
+ * wrt: num_wrt names, parameters and "SPLINE[i]" (NULL or num_wrt = 0: every parameter);
+ *   wrt_splines != 0 adds every ordinate of every spline after them (skipping ones
+ *   listed). The columns of the result are in this order.
+ * results_path: NULL or "": no file; else the results file of the forward run plus, per
+ *   objective, the group /objectives/NAME (attributes value, integral, terminal,
+ *   gradient_names; dataset gradient), as `mbdae gradient -o` writes it.
+ *
+ * The result is stored in the handle and read with mbdae_count / mbdae_name
+ * (MBDAE_GRADIENT_OBJECTIVES: rows, MBDAE_GRADIENT_WRT: columns), mbdae_get_gradient and
+ * mbdae_gradient_report; it stays until the next successful mbdae_gradient or the model
+ * is freed (setting a parameter does not clear it). The call runs its own simulations:
+ * the stored output rows, the current state and the assembly are left as they were.
+ * Parameters set with mbdae_set_parameter are fixed numbers as with `--set` (a parameter
+ * computed from others follows them unless it was set itself).
+ *
+ * Errors (nothing stored, the previous result kept): an unknown method, objective or wrt
+ * name (or an ordinate outside its spline, a name listed twice) is MBDAE_ERROR_ARGUMENT
+ * (the message names it); a model without objectives, a parameter the exact methods
+ * cannot differentiate (the element and line are named), a method the integrator cannot
+ * provide for these objectives (the IDAS adjoint with objectives over accelerations or
+ * reactions), a model that cannot be assembled (as `mbdae gradient` exits 2) is
+ * MBDAE_ERROR_INPUT; a run that fails (the forward run, a perturbed run of fd or its
+ * assembly, the sweep) is MBDAE_ERROR_SOLVER with the reason (a results file asked for
+ * is written with status "failed"); a results file that cannot be written
+ * MBDAE_ERROR_IO. */
+mbdae_status mbdae_gradient(mbdae_model* model, const char* method,
+                            const char* const* objectives, int num_objectives,
+                            const char* const* wrt, int num_wrt, int wrt_splines,
+                            const char* results_path);
+
+typedef enum {
+  MBDAE_GRAD_VALUES = 0,    /* G_i of the forward run                     num_objectives */
+  MBDAE_GRAD_GRADIENT = 1,  /* dG_i/dp_k at [i * num_wrt + k] (row-major) num_objectives * num_wrt */
+  MBDAE_GRAD_FD_STEPS = 2,  /* fd: the absolute step of each p_k          num_wrt (other
+                               methods: MBDAE_ERROR_ARGUMENT) */
+  MBDAE_GRAD_TIMES = 3,     /* process CPU seconds of the forward run, CPU seconds of the
+                               gradient beyond it (fd: every perturbed run), wall seconds
+                               of everything                              3 */
+  MBDAE_GRAD_COUNTERS = 4   /* accepted steps of the forward run, whole runs done (fd:
+                               1 + 2 per wrt entry), linear solves of the HHT sweep, bytes
+                               of the stored HHT run                      4 */
+} mbdae_gradient_output;
+
+/* Quantity `what` of the stored gradient into out (n values). MBDAE_ERROR_ORDER before a
+ * successful mbdae_gradient. Sizes: num_objectives = count of MBDAE_GRADIENT_OBJECTIVES,
+ * num_wrt = count of MBDAE_GRADIENT_WRT. */
+mbdae_status mbdae_get_gradient(mbdae_model* model, mbdae_gradient_output what, double* out,
+                                int n);
+/* The stored gradient as text, NUL-terminated: json = 0 the report `mbdae gradient`
+ * prints (values, the table of dG/dp, method, times), json != 0 its `--json` object.
+ * buf = NULL with size = 0 asks for the length: *length (not NULL) is then the number of
+ * bytes needed, the NUL included; a buffer shorter than that is MBDAE_ERROR_SIZE. */
+mbdae_status mbdae_gradient_report(mbdae_model* model, int json, char* buf, size_t size,
+                                   size_t* length);
 
 #ifdef __cplusplus
 }

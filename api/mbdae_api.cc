@@ -97,12 +97,15 @@ const char* KindName(mbdae_kind kind) {
     case MBDAE_PARAMETERS: return "parameter";
     case MBDAE_SPLINES: return "spline";
     case MBDAE_OUTPUTS: return "output row";
+    case MBDAE_OBJECTIVES: return "objective";
+    case MBDAE_GRADIENT_OBJECTIVES: return "objective of the stored gradient";
+    case MBDAE_GRADIENT_WRT: return "wrt entry of the stored gradient";
   }
   return "?";
 }
 
 void CheckKind(mbdae_kind kind) {
-  if (static_cast<int>(kind) < 0 || static_cast<int>(kind) > MBDAE_OUTPUTS)
+  if (static_cast<int>(kind) < 0 || static_cast<int>(kind) >= mbdae_model::kNumKinds)
     throw ApiError(MBDAE_ERROR_ARGUMENT, "unknown kind " + std::to_string(static_cast<int>(kind)));
 }
 
@@ -112,6 +115,8 @@ void CheckIndex(int index, int count, const char* what) {
                                              " is out of range: there are " +
                                              std::to_string(count));
 }
+
+}  // namespace
 
 // ---- Loading -------------------------------------------------------------------------------
 
@@ -138,6 +143,8 @@ void Load(const mbdae_model& m, const std::map<std::string, double>& overrides,
   *settings = driver::ResolveSettings(loaded->simulation, m.option_overrides);
   *model = std::move(loaded);
 }
+
+namespace {
 
 // Drops the assembly and what depends on it; the stored rows stay until the next one.
 void MarkForAssembly(mbdae_model& m) {
@@ -394,6 +401,9 @@ const std::vector<std::string>& Names(mbdae_model& m, mbdae_kind kind) {
     case MBDAE_PARAMETERS: for (const auto& x : model.parameters) list.push_back(x.name); break;
     case MBDAE_SPLINES: for (const auto& x : model.splines) list.push_back(x.name); break;
     case MBDAE_OUTPUTS: break;
+    case MBDAE_OBJECTIVES: for (const auto& x : model.objectives) list.push_back(x.name); break;
+    case MBDAE_GRADIENT_OBJECTIVES: if (m.gradient) list = m.gradient->objectives; break;
+    case MBDAE_GRADIENT_WRT: if (m.gradient) list = m.gradient->wrt; break;
   }
   names = std::move(list);
   m.names_valid[kind] = true;
@@ -417,13 +427,18 @@ int Count(mbdae_model& m, mbdae_kind kind) {
     case MBDAE_PARAMETERS: return static_cast<int>(m.model->parameters.size());
     case MBDAE_SPLINES: return static_cast<int>(m.model->splines.size());
     case MBDAE_OUTPUTS: return static_cast<int>(m.rows.size());
+    case MBDAE_OBJECTIVES: return static_cast<int>(m.model->objectives.size());
+    case MBDAE_GRADIENT_OBJECTIVES:
+      return m.gradient ? static_cast<int>(m.gradient->objectives.size()) : 0;
+    case MBDAE_GRADIENT_WRT: return m.gradient ? static_cast<int>(m.gradient->wrt.size()) : 0;
   }
   return 0;
 }
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, ida.rtol, ida.atol";
+    "hht.modified, hht.form, ida.rtol, ida.atol, gradient.fd_step, gradient.newton_factor, "
+    "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 double ParseOptionNumber(const std::string& key, const char* value) {
   char* end = nullptr;
@@ -447,6 +462,7 @@ bool ParseOptionBool(const std::string& key, const char* value) {
 }
 
 void SetOption(mbdae_model& m, const std::string& key, const char* value) {
+  if (SetGradientOption(m, key, value)) return;  // not a simulation setting: no re-assembly
   driver::SettingsOverrides o = m.option_overrides;
   if (key == "t_end") {
     o.t_end = ParseOptionNumber(key, value);
@@ -508,6 +524,8 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.form") return s.hht_form;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);
+  std::string gradient_value;
+  if (GetGradientOption(m, key, &gradient_value)) return gradient_value;
   UnknownOption(key);
 }
 
@@ -939,6 +957,36 @@ mbdae_status mbdae_get_matrix(mbdae_model* model, const mbdae_block* blocks, int
     NotNull(nnz, "nnz");
     if (num_blocks > 0) NotNull(blocks, "blocks");
     mbdae::api::GetMatrix(m, blocks, num_blocks, rows, cols, format, nnz, ptr, idx, val);
+  });
+}
+
+// ---- Objectives and their gradients (gradient.cc) ------------------------------------------
+
+mbdae_status mbdae_gradient(mbdae_model* model, const char* method,
+                            const char* const* objectives, int num_objectives,
+                            const char* const* wrt, int num_wrt, int wrt_splines,
+                            const char* results_path) {
+  return Call([&] {
+    mbdae_model& m = Handle(model);
+    mbdae::api::ComputeGradient(m, method, objectives, num_objectives, wrt, num_wrt,
+                                wrt_splines != 0, results_path);
+  });
+}
+
+mbdae_status mbdae_get_gradient(mbdae_model* model, mbdae_gradient_output what, double* out,
+                                int n) {
+  return Call([&] {
+    const mbdae_model& m = Handle(model);
+    NotNull(out, "out");
+    mbdae::api::GetGradient(m, what, out, n);
+  });
+}
+
+mbdae_status mbdae_gradient_report(mbdae_model* model, int json, char* buf, size_t size,
+                                   size_t* length) {
+  return Call([&] {
+    const mbdae_model& m = Handle(model);
+    mbdae::api::GradientReport(m, json != 0, buf, size, length);
   });
 }
 

@@ -3,7 +3,8 @@
 //
 // Files: api/mbdae_api.cc (the extern "C" functions: handles, errors, names, parameters,
 // splines, options, assembly, solving, stored outputs, results file); api/state_matrices.cc
-// (vectors, matrices, measures at the current state). Every extern "C" function catches
+// (vectors, matrices, measures at the current state); api/gradient.cc (objectives and
+// their gradients: driver::ComputeGradient on the handle's model). Every extern "C" function catches
 // everything: ApiError gives its status, mbs::ModelError / driver::InputError
 // MBDAE_ERROR_INPUT, std::bad_alloc and anything else MBDAE_ERROR_INTERNAL.
 #pragma once
@@ -17,6 +18,7 @@
 
 #include "api/mbdae.h"
 #include "dae/integrator.h"
+#include "driver/gradient.h"
 #include "driver/simulation.h"
 #include "mbs/model.h"
 
@@ -87,11 +89,19 @@ struct mbdae_model {
   std::string failure_reason;
   double t_failed = 0;  // the time the failed integrator reached
 
+  // The settings of mbdae_gradient ("gradient.*" options: fd_step, newton_factor,
+  // trajectory_memory, ida_checkpoint_steps; the names and the method are per call).
+  mbdae::driver::GradientRequest gradient_settings;
+  // The result of the last successful mbdae_gradient (null before the first); kept
+  // whatever happens to the model until the next one.
+  std::unique_ptr<mbdae::driver::GradientResult> gradient;
+
   // Name lists (stable pointers for mbdae_name), filled on demand; names_valid[kind] is
   // false until filled and after the model is rebuilt (or re-assembled, for the
-  // multipliers and the redundant equations).
-  std::vector<std::string> names_cache[10];
-  bool names_valid[10] = {};
+  // multipliers and the redundant equations; or a new gradient, for its names).
+  static constexpr int kNumKinds = MBDAE_GRADIENT_WRT + 1;
+  std::vector<std::string> names_cache[kNumKinds];
+  bool names_valid[kNumKinds] = {};
 
   // Measures of the rows (unwrapping, offsets), of `model` and `assembly`: declared last,
   // so destroyed before them.
@@ -102,6 +112,22 @@ namespace mbdae::api {
 
 // Assembles if needed (throws ApiError MBDAE_ERROR_SOLVER or INPUT with the reason).
 void EnsureAssembled(mbdae_model& m);
+
+// The model from its source (path or text) with the given parameter overrides and the
+// spline points set through the API; the settings resolved with the API's options.
+// Throws (ModelError, InputError, ApiError) without touching m. In api/mbdae_api.cc.
+void Load(const mbdae_model& m, const std::map<std::string, double>& overrides,
+          std::unique_ptr<mbs::Model>* model, mbs::SimulationSettings* settings);
+
+// Implemented in api/gradient.cc. All throw ApiError (or the driver's InputError).
+void ComputeGradient(mbdae_model& m, const char* method, const char* const* objectives,
+                     int num_objectives, const char* const* wrt, int num_wrt, bool wrt_splines,
+                     const char* results_path);
+void GetGradient(const mbdae_model& m, mbdae_gradient_output what, double* out, int n);
+void GradientReport(const mbdae_model& m, bool json, char* buf, size_t size, size_t* length);
+// "gradient.*" options (SetGradientOption returns false for a key that is not one).
+bool SetGradientOption(mbdae_model& m, const std::string& key, const char* value);
+bool GetGradientOption(const mbdae_model& m, const std::string& key, std::string* value);
 
 // Implemented in api/state_matrices.cc. All throw ApiError.
 void MeasureValues(mbdae_model& m, double* values, int n);
