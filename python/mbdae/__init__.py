@@ -12,6 +12,11 @@ sparse matrices for the matrices, exceptions with the library's message. Example
         m.solve()
         print(m.outputs.time[-1], m.outputs.q[-1])
 
+Gradients of the model's objectives (``objectives:`` of the model file) with respect to
+parameters and spline ordinates: ``m.gradient(wrt=["k"], method="adjoint")``; as a
+function for ``scipy.optimize.minimize``: ``f = m.objective_function("G", ["k"])``,
+``minimize(f, f.x0, jac=f.jac)``.
+
 The library libmbdae.so is found through the environment variable MBDAE_LIBRARY, next to
 this package, or in the build tree of a source checkout (see :data:`library_path`).
 """
@@ -19,6 +24,7 @@ this package, or in the build tree of a source checkout (see :data:`library_path
 from . import _lib
 from .errors import (ArgumentError, Error, FileError, InputError, InternalError, IOError_,
                      OrderError, SizeError, SolverError)
+from .gradient import METHODS, Gradient, ObjectiveFunction
 from .model import MATRICES, OPTIONS, VECTORS, Model, Row, State
 
 __version__ = _lib.lib.mbdae_version().decode()
@@ -29,4 +35,5 @@ api_version = _lib.lib.mbdae_api_version()
 
 __all__ = ["Model", "State", "Row", "Error", "InputError", "ArgumentError", "SizeError",
            "OrderError", "SolverError", "FileError", "IOError_", "InternalError", "VECTORS",
-           "MATRICES", "OPTIONS", "library_path", "api_version", "__version__"]
+           "MATRICES", "OPTIONS", "METHODS", "Gradient", "ObjectiveFunction", "library_path",
+           "api_version", "__version__"]

@@ -20,10 +20,13 @@ API_VERSION = 1  # MBDAE_API_VERSION of the header this package was written agai
 
 # mbdae_kind
 COORDINATES, MULTIPLIERS, REDUNDANT, BODIES, JOINTS, FORCES, MEASURES, PARAMETERS, \
-    SPLINES, OUTPUTS = range(10)
+    SPLINES, OUTPUTS, OBJECTIVES, GRADIENT_OBJECTIVES, GRADIENT_WRT = range(13)
 
 # mbdae_output
 OUT_TIME, OUT_Q, OUT_V, OUT_A, OUT_LAMBDA, OUT_MEASURES, OUT_BODY_POSES = range(7)
+
+# mbdae_gradient_output
+GRAD_VALUES, GRAD_GRADIENT, GRAD_FD_STEPS, GRAD_TIMES, GRAD_COUNTERS = range(5)
 
 # mbdae_sparse_format
 CSC, CSR = 0, 1
@@ -90,6 +93,10 @@ def _declare(lib):
         "mbdae_get_vector": (st, [vp, i, dp, i]),
         "mbdae_set_newton_step": (st, [vp, d]),
         "mbdae_get_matrix": (st, [vp, ctypes.POINTER(Block), i, i, i, i, ip, ip, ip, dp]),
+        "mbdae_gradient": (st, [vp, cp, ctypes.POINTER(cp), i, ctypes.POINTER(cp), i, i, cp]),
+        "mbdae_get_gradient": (st, [vp, i, dp, i]),
+        "mbdae_gradient_report": (st, [vp, i, ctypes.c_char_p, ctypes.c_size_t,
+                                       ctypes.POINTER(ctypes.c_size_t)]),
     }
     for name, (restype, argtypes) in signatures.items():
         f = getattr(lib, name)
@@ -140,6 +147,15 @@ def dptr(array):
     if array is None:
         return None
     return array.ctypes.data_as(_c_double_p)
+
+
+def names_array(names):
+    """A (char** array, count) pair for a list of str, or (None, 0) for None."""
+    if names is None:
+        return None, 0
+    encoded = [n.encode() for n in names]
+    array = (ctypes.c_char_p * max(1, len(encoded)))(*encoded)
+    return array, len(encoded)
 
 
 def iptr(array):

@@ -6,6 +6,7 @@ import os
 import numpy as np
 
 from . import _lib
+from . import gradient as _gradient
 from ._lib import check, dptr, iptr
 from .errors import ArgumentError, OrderError, SizeError
 
@@ -36,9 +37,12 @@ MATRICES = {
     "newton_ida": 7,       # IDA Newton matrix      (2 nq + 2 nm) square
 }
 
-#: The keys of :attr:`Model.options` (the model file's ``simulation:`` block).
+#: The keys of :attr:`Model.options`: the model file's ``simulation:`` block, then the
+#: settings of :meth:`Model.gradient` (``gradient.*``; they do not restart the model).
 OPTIONS = ("t_end", "output_step", "integrator", "hht.alpha", "hht.step", "hht.adaptive",
-           "hht.tolerance", "hht.modified", "hht.form", "ida.rtol", "ida.atol")
+           "hht.tolerance", "hht.modified", "hht.form", "ida.rtol", "ida.atol",
+           "gradient.fd_step", "gradient.newton_factor", "gradient.trajectory_memory",
+           "gradient.ida_checkpoint_steps")
 
 _FORMATS = {"csc": _lib.CSC, "csr": _lib.CSR}
 _DP = ctypes.POINTER(ctypes.c_double)
@@ -489,8 +493,10 @@ class Model:
 
     def _names(self, kind):
         # The structure (bodies, coordinates, ...) never changes; multipliers and redundant
-        # equations may change at a re-assembly, so they are read each time.
-        cached = kind not in (_lib.MULTIPLIERS, _lib.REDUNDANT)
+        # equations may change at a re-assembly, and the names of the stored gradient at
+        # each gradient, so they are read each time.
+        cached = kind not in (_lib.MULTIPLIERS, _lib.REDUNDANT, _lib.GRADIENT_OBJECTIVES,
+                              _lib.GRADIENT_WRT)
         if cached and kind in self._names_cache:
             return list(self._names_cache[kind])
         h = self._handle()
@@ -592,6 +598,11 @@ class Model:
         """Names of the measures."""
         return self._names(_lib.MEASURES)
 
+    @property
+    def objectives(self):
+        """Names of the objectives (``objectives:`` of the model file)."""
+        return self._names(_lib.OBJECTIVES)
+
     def _find(self, kind, what, name):
         index = ctypes.c_int()
         status = lib.mbdae_find(self._handle(), kind, name.encode(), ctypes.byref(index))
@@ -612,14 +623,16 @@ class Model:
 
     def index(self, kind, name):
         """The zero-based index of item `name` of `kind` ("coordinates", "multipliers",
-        "redundant", "bodies", "joints", "forces", "measures", "parameters", "splines")."""
+        "redundant", "bodies", "joints", "forces", "measures", "parameters", "splines",
+        "objectives")."""
         kinds = {"coordinates": (_lib.COORDINATES, "coordinate"),
                  "multipliers": (_lib.MULTIPLIERS, "multiplier"),
                  "redundant": (_lib.REDUNDANT, "redundant equation"),
                  "bodies": (_lib.BODIES, "body"), "joints": (_lib.JOINTS, "joint"),
                  "forces": (_lib.FORCES, "force"), "measures": (_lib.MEASURES, "measure"),
                  "parameters": (_lib.PARAMETERS, "parameter"),
-                 "splines": (_lib.SPLINES, "spline")}
+                 "splines": (_lib.SPLINES, "spline"),
+                 "objectives": (_lib.OBJECTIVES, "objective")}
         if kind not in kinds:
             raise ArgumentError("mbdae: no kind '%s'; the kinds are: %s"
                                 % (kind, ", ".join(kinds)))
@@ -834,3 +847,45 @@ class Model:
         """The step h of the Newton matrices "newton_hht" and "newton_ida" (default: the
         option hht.step)."""
         check(lib.mbdae_set_newton_step(self._handle(), float(h)))
+
+    # ---- objectives and gradients (gradient.py) -----------------------------------------
+
+    def gradient(self, objectives=None, wrt=None, method="adjoint", wrt_splines=False,
+                 results=None):
+        """Values and gradients of the model's objectives with the current parameters,
+        spline points and options, as a :class:`mbdae.Gradient` (``.values`` dict,
+        ``.gradient`` numpy array objectives x wrt, ``.wrt``, ``.as_dict()``, times).
+
+        objectives: a name or a list of names (None: every objective); rows come in the
+        model's order. wrt: parameter names and spline ordinates "SPLINE[i]" (None: every
+        parameter); wrt_splines adds every spline ordinate. method: "adjoint" (HHT: the
+        discrete adjoint of the run; IDA: IDAS adjoint), "forward" (direct
+        differentiation; IDAS forward) or "fd" (central differences of whole runs, step
+        ``options["gradient.fd_step"]`` times max(|p|, 1)). results: a path for the
+        results file of the forward run with /objectives/NAME (None: no file).
+
+        Runs its own simulations: the stored outputs and the current state are left as
+        they were. Raises ArgumentError for an unknown objective, wrt name or method,
+        InputError for what the method cannot differentiate (the message names it),
+        SolverError when a run fails.
+        """
+        return _gradient.compute(self, objectives, wrt, method, wrt_splines, results)
+
+    def objective_function(self, objective, wrt=None, method="adjoint", scale=1.0):
+        """Objective `objective` as a function f(x) of the variables `wrt` (parameter
+        names and spline ordinates "SPLINE[i]"; None: every parameter) for an optimiser,
+        with f.jac(x) its gradient, f.x0 the current values (a :class:`mbdae.
+        ObjectiveFunction`)::
+
+            f = m.objective_function("misfit", ["k", "c"])
+            r = scipy.optimize.minimize(f, f.x0, jac=f.jac, method="BFGS")
+
+        f(x) sets the model's parameters and spline ordinates to x and computes value and
+        gradient in one run (cached: f(x), f.jac(x) at the same x cost one run). scale
+        multiplies value and gradient (-1: maximise).
+        """
+        return _gradient.objective_function(self, objective, wrt, method, scale)
+
+    def spline_ordinates(self, spline):
+        """The wrt names of every ordinate of spline `spline`: ["u1[0]", "u1[1]", ...]."""
+        return _gradient.spline_ordinates(self, spline)
