@@ -264,9 +264,14 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
       o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
     };
   if (hht && exact) {
-    so.prepare = [&trajectory](dae::Integrator& integrator) {
-      integrator.SetStepObserver(trajectory.Recorder());
-    };
+    // The record of the run under the memory budget (checkpoints beyond it:
+    // docs/sensitivities.md, "Memory and checkpoints"); a budget too small is bad input.
+    try {
+      trajectory.set_memory_budget(static_cast<size_t>(request.trajectory_memory));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("trajectory_memory: ") + e.what());
+    }
+    so.prepare = [&trajectory](dae::Integrator& integrator) { trajectory.Attach(integrator); };
   } else if (hht && settings.hht_adaptive) {
     so.prepare = [&steps](dae::Integrator& integrator) {
       integrator.SetStepObserver([&steps](const dae::State&, double h) {
