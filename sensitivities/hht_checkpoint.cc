@@ -86,9 +86,9 @@ size_t RecordStore::bytes() const {
 HhtTrajectory::HhtTrajectory(int nq, int nc) : nq_(nq), nc_(nc) { Reset(); }
 
 size_t HhtTrajectory::minimum_budget() const {
-  const size_t ckpt = history_ > 0 ? checkpoint_bytes()
-                                   : state_bytes() + sizeof(double) * dae::HhtHistory::Size(nq_, 0);
-  return kMinCheckpoints * ckpt;
+  // The largest HHT history a system of nq coordinates can have (nq / 4 groups), so that
+  // a budget accepted here holds 16 checkpoints of any integrator Attach meets.
+  return kMinCheckpoints * (state_bytes() + sizeof(double) * dae::HhtHistory::Size(nq_, nq_ / 4));
 }
 
 void HhtTrajectory::set_memory_budget(size_t bytes) {
@@ -105,20 +105,16 @@ void HhtTrajectory::set_memory_budget(size_t bytes) {
 
 void HhtTrajectory::Attach(dae::Integrator& integrator) {
   integrator.SaveSnapshot(&scratch_);  // the history's size; throws if unsupported
+  if (budget_ != 0 && state_bytes() + sizeof(double) * scratch_.history.size() >
+                          minimum_budget() / kMinCheckpoints)
+    throw std::invalid_argument("HhtTrajectory::Attach: " + integrator.name() +
+                                " keeps a longer history than minimum_budget() allows for");
   if (scratch_.state.q.size() != size_t(nq_) || scratch_.state.lambda.size() != size_t(nc_))
     throw std::invalid_argument("HhtTrajectory::Attach: the integrator's system has nq = " +
                                 std::to_string(scratch_.state.q.size()) + ", nc = " +
                                 std::to_string(scratch_.state.lambda.size()) +
                                 ", the trajectory " + std::to_string(nq_) + ", " +
                                 std::to_string(nc_));
-  const size_t least =
-      kMinCheckpoints * (state_bytes() + sizeof(double) * scratch_.history.size());
-  if (budget_ != 0 && budget_ < least)
-    throw std::invalid_argument("HhtTrajectory::Attach: the memory budget of " +
-                                std::to_string(budget_) + " bytes holds fewer than " +
-                                std::to_string(kMinCheckpoints) + " checkpoints of " +
-                                integrator.name() + "; the least is " + std::to_string(least) +
-                                " bytes (or 0: store every state)");
   history_ = static_cast<int>(scratch_.history.size());
   integrator_ = &integrator;
   Reset();

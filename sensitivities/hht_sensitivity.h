@@ -52,15 +52,14 @@ class HhtTrajectory {
   // budget below minimum_budget() (nor 0).
   void set_memory_budget(size_t bytes);
   size_t memory_budget() const { return budget_; }
-  // The smallest budget accepted: 16 checkpoints (8 (3 nq + nc + 4) bytes each, with
-  // the HHT history of a system without Euler parameters; Attach checks again with the
-  // integrator's history).
+  // The smallest budget accepted: 16 checkpoints of the largest HHT history nq
+  // coordinates allow (nq / 4 Euler-parameter groups): 16 x 8 (3 nq + nc +
+  // dae::HhtHistory::Size(nq, nq / 4)) bytes.
   size_t minimum_budget() const;
 
-  // Records the integrator's run (sets its step observer; call before Initialize). The
-  // integrator must outlive the recording and support SaveSnapshot (HHT). Throws
-  // std::invalid_argument when the budget holds fewer than 16 of its checkpoints,
-  // std::logic_error when it cannot save its state.
+  // Records the integrator's run (sets its step observer; call before Initialize; starts
+  // a new record). The integrator must outlive the recording and support SaveSnapshot
+  // (HHT). Throws std::logic_error when it cannot save its state.
   void Attach(dae::Integrator& integrator);
   // A step observer that stores every state, for recording without a budget (throws
   // std::logic_error if a budget is set: checkpoints need Attach).
