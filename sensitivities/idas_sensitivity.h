@@ -36,10 +36,11 @@
 //   as the IDA integrator needs anyway).
 //
 // Both methods run with the IDA integrator's settings (IdaOptions). The forward method
-// stops at each requested output time like a simulation does; the adjoint stops only at
-// t_end (IDAS replays checkpoint intervals with the last stop time only), which changes
-// the run by the integration error, not the gradient's meaning. Errors are returned as messages;
-// nothing escapes into SUNDIALS callbacks.
+// stops at each requested output time like a simulation does; the adjoint ignores the
+// output times and goes straight to t_end (IDAS replays checkpoint intervals with the
+// last stop time only, and intermediate interpolated returns of IDASolveF corrupted the
+// quadratures), which changes the run by the integration error, not the gradient's
+// meaning. Errors are returned as messages; nothing escapes into SUNDIALS callbacks.
 #pragma once
 
 #include <string>
