@@ -163,3 +163,14 @@ def test_failed_run_exits_3_without_a_gradient(tmp_path, method):
     with h5py.File(path, "r") as f:
         assert f.attrs["status"] == "failed"
         assert "objectives" not in f
+
+
+def test_objective_over_an_unknown_measure_exits_2_naming_it(tmp_path):
+    model = tmp_path / "unknown_measure.yaml"
+    model.write_text(open(MODEL).read().replace('integral: "fx^2"', 'integral: "nosuch^2"'))
+    out = tmp_path / "u.h5"
+    p = subprocess.run([MBDAE, "gradient", str(model), "--wrt", "k", "-o", str(out)],
+                       capture_output=True, text=True)
+    assert p.returncode == 2
+    assert "objective 'R'" in p.stderr and "'nosuch'" in p.stderr and "unknown_measure.yaml:" in p.stderr
+    assert not out.exists()
