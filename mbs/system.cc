@@ -229,7 +229,8 @@ class Sink {
     if (__builtin_expect(recording_, false)) {
       Record(r, c, true);
     } else {
-      assert(cursor_ < static_cast<int>(position_.size()));
+      // Only for an active sink (values given): callers skip the adds of the others.
+      assert(values_ != nullptr && cursor_ < static_cast<int>(position_.size()));
       values_[position_[cursor_++]] += v;
     }
   }
@@ -400,11 +401,44 @@ struct MultibodySystem::Impl {
   std::vector<std::vector<char>> param_dep;    // structural: value_j depends on sens_k
   std::vector<std::vector<char>> spline_dep;   // structural: spline s's ordinates depend on sens_k
   std::vector<std::vector<std::vector<double>>> spline_dy;  // [k][s] ordinate direction
-  // Tangent splines (Spline::Tangent) per [k][s], rebuilt when the spline's points change.
+  // Tangent splines (Spline::Tangent) per [k][s], rebuilt when the spline's points change
+  // (the points they were built from: tangent_x/y[s], per spline; tangent_valid[s]).
   std::vector<std::vector<Spline>> tangents;
-  std::vector<std::vector<std::vector<double>>> tangent_x, tangent_y;
+  std::vector<std::vector<double>> tangent_x, tangent_y;
+  std::vector<char> tangent_valid;
   std::vector<std::vector<const Spline*>> tangent_ptrs;
   Sink psink[dae::kNumParameterMatrices];
+
+  // Compact dependency lists, built once (SetupSensitivity), so that an evaluation costs
+  // in proportion to the nonzeros of the parameter matrices, not to elements x parameters.
+  // Each list is in ascending k: the adds happen in the order of the dense loops they
+  // replace, so the values are the same bit for bit.
+  std::vector<std::vector<int>> param_users;   // [j]: the k with param_dep[k][j]
+  std::vector<std::vector<int>> spline_users;  // [s]: the k with spline_dep[k][s]
+  // Bodies: the k reaching the mass (dm), the inertia (dj) or gravity (dg), with the
+  // derivatives of those parameter-only values (cached: recomputed when params change).
+  struct BodyTerm {
+    int k = 0;
+    bool dm_dep = false, dj_dep = false, dg_dep = false;
+    double dm = 0;
+    Mat3 dJ = Mat3::Zero();
+    Vec3 dg = Vec3::Zero();
+  };
+  std::vector<std::vector<BodyTerm>> body_terms;
+  // Force elements: the k reaching one of its expressions; mask bit e: expression e
+  // (ForceExpression numbering) depends on k. Bushings: the derivatives of the stiffness
+  // and damping (parameter-only, cached like the bodies').
+  struct ForceTerm {
+    int k = 0;
+    unsigned mask = 0;
+    BushingParameters dbp;
+  };
+  std::vector<std::vector<ForceTerm>> force_terms;
+  // Motion joints, by measure_constraints index: the k reaching the motion value.
+  std::vector<std::vector<int>> motion_terms;
+  // The parameter values the cached derivatives were computed at.
+  std::vector<double> cached_params;
+  bool cache_valid = false;
 
   bool Depends(const Expression& e, int k) const {
     for (int j : e.parameters_used())
@@ -431,9 +465,30 @@ struct MultibodySystem::Impl {
     d.spline_tangents = tangent_ptrs[k].empty() ? nullptr : tangent_ptrs[k].data();
     return d;
   }
+  // Adds to *ks the k whose direction reaches e (Depends(e, k)), each once: mark[k] is
+  // set for the k in *ks (the caller sorts *ks and clears mark).
+  void AddUsers(const Expression& e, std::vector<char>& mark, std::vector<int>* ks) const {
+    auto add = [&](const std::vector<int>& users) {
+      for (int k : users)
+        if (!mark[k]) {
+          mark[k] = 1;
+          ks->push_back(k);
+        }
+    };
+    for (int j : e.parameters_used()) add(param_users[j]);
+    for (int sp : e.splines_used()) add(spline_users[sp]);
+  }
+  static void TakeUsers(std::vector<char>& mark, std::vector<int>* ks) {
+    std::sort(ks->begin(), ks->end());
+    for (int k : *ks) mark[k] = 0;
+  }
   void SetupSensitivity();
+  void BuildParameterTerms();
+  void UpdateParameterCache();
   void UpdateTangents();
-  void RunParameters(const dae::EvalInput& in, dae::EvalOutput& out);
+  // values_current: force_values, force_expr and measure_values hold the values of this
+  // (t, q, v) (Run computed them just before); else they are recomputed here.
+  void RunParameters(const dae::EvalInput& in, dae::EvalOutput& out, bool values_current);
 
   int BodyOf(int marker) const { return model.markers[marker].body; }
 
@@ -1456,7 +1511,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   if (!sens.empty()) {
     bool any = false;
     for (double* pm : out.parameter_matrix) any = any || pm != nullptr;
-    if (any) RunParameters(in, out);
+    if (any) RunParameters(in, out, /*values_current=*/true);
   }
   if (!law_error.empty()) {
     // A user function's error is fatal (negative code): retrying with a smaller step
@@ -1556,138 +1611,248 @@ void MultibodySystem::Impl::SetupSensitivity() {
                                     tail);
   }
   tangents.assign(np, std::vector<Spline>(ns));
-  tangent_x.assign(np, std::vector<std::vector<double>>(ns));
-  tangent_y.assign(np, std::vector<std::vector<double>>(ns));
+  tangent_x.assign(ns, {});
+  tangent_y.assign(ns, {});
+  tangent_valid.assign(ns, 0);
   tangent_ptrs.assign(np, std::vector<const Spline*>(ns, nullptr));
+  BuildParameterTerms();
   UpdateTangents();
 }
 
+// The dependency lists of every element (see Impl): for each element the union of the
+// users of its expressions' parameters and splines, ascending.
+void MultibodySystem::Impl::BuildParameterTerms() {
+  const int np = static_cast<int>(sens.size());
+  const int nm = static_cast<int>(model.parameters.size());
+  const int ns = static_cast<int>(model.splines.size());
+  param_users.assign(nm, {});
+  spline_users.assign(ns, {});
+  for (int k = 0; k < np; ++k) {
+    for (int j = 0; j < nm; ++j)
+      if (param_dep[k][j]) param_users[j].push_back(k);
+    for (int sp = 0; sp < ns; ++sp)
+      if (spline_dep[k][sp]) spline_users[sp].push_back(k);
+  }
+  std::vector<char> mark(np, 0), mark_all(np, 0);
+  std::vector<int> ks, all;
+  // The k reaching one expression of `list` (ascending).
+  auto users = [&](const std::vector<Expression>& list) {
+    ks.clear();
+    for (const Expression& e : list) AddUsers(e, mark, &ks);
+    TakeUsers(mark, &ks);
+    return ks;
+  };
+  // Merges a sorted list into `all` (through mark_all).
+  auto merge = [&](const std::vector<int>& list) {
+    for (int k : list)
+      if (!mark_all[k]) {
+        mark_all[k] = 1;
+        all.push_back(k);
+      }
+  };
+  const std::vector<int> gravity_users = users(model.gravity_expressions);
+  body_terms.assign(model.bodies.size(), {});
+  for (size_t b = 0; b < model.bodies.size(); ++b) {
+    const BodyExpressions& x = model.bodies[b].expressions;
+    const std::vector<int> mass_users = users(x.mass);
+    const std::vector<int> inertia_users = users(x.inertia);
+    all.clear();
+    merge(mass_users);
+    merge(inertia_users);
+    merge(gravity_users);
+    TakeUsers(mark_all, &all);
+    for (int k : all) {
+      BodyTerm t;
+      t.k = k;
+      t.dm_dep = std::binary_search(mass_users.begin(), mass_users.end(), k);
+      t.dj_dep = std::binary_search(inertia_users.begin(), inertia_users.end(), k);
+      t.dg_dep = std::binary_search(gravity_users.begin(), gravity_users.end(), k);
+      body_terms[b].push_back(t);
+    }
+  }
+  motion_terms.assign(measure_constraints.size(), {});
+  for (size_t i = 0; i < measure_constraints.size(); ++i) {
+    if (!measure_constraints[i].motion) continue;
+    ks.clear();
+    AddUsers(model.joints[measure_constraints[i].joint].value, mark, &ks);
+    TakeUsers(mark, &ks);
+    motion_terms[i] = ks;
+  }
+  force_terms.assign(model.forces.size(), {});
+  std::vector<unsigned> mask(np, 0);
+  for (size_t fk = 0; fk < model.forces.size(); ++fk) {
+    const Force& fe = model.forces[fk];
+    if (fe.type == ForceType::kUser) continue;
+    all.clear();
+    if (fe.type == ForceType::kBushing) {
+      for (int c = 0; c < 6; ++c) {
+        merge(users({fe.bushing_stiffness[c]}));
+        merge(users({fe.bushing_damping[c]}));
+      }
+    } else {
+      for (int e = FirstExpression(fe); e < EndExpression(fe); ++e) {
+        const std::vector<int>& u = users({ForceExpression(fe, e)});
+        for (int k : u) mask[k] |= 1u << e;
+        merge(u);
+      }
+    }
+    TakeUsers(mark_all, &all);
+    for (int k : all) {
+      ForceTerm t;
+      t.k = k;
+      t.mask = mask[k];
+      mask[k] = 0;
+      force_terms[fk].push_back(t);
+    }
+  }
+  cache_valid = false;
+}
+
+// The parameter-only derivatives of the body and bushing terms, at the current params
+// (recomputed only when they change).
+void MultibodySystem::Impl::UpdateParameterCache() {
+  if (cache_valid && cached_params == params) return;
+  for (size_t b = 0; b < model.bodies.size(); ++b) {
+    const BodyExpressions& x = model.bodies[b].expressions;
+    for (BodyTerm& t : body_terms[b]) {
+      const int k = t.k;
+      t.dm = t.dm_dep ? ParamDerivative(x.mass[0], k) : 0.0;
+      t.dJ.setZero();
+      if (t.dj_dep) {
+        for (int c = 0; c < 3; ++c) t.dJ(c, c) = ParamDerivative(x.inertia[c], k);
+        if (x.inertia.size() == 6) {
+          t.dJ(0, 1) = t.dJ(1, 0) = ParamDerivative(x.inertia[3], k);
+          t.dJ(0, 2) = t.dJ(2, 0) = ParamDerivative(x.inertia[4], k);
+          t.dJ(1, 2) = t.dJ(2, 1) = ParamDerivative(x.inertia[5], k);
+        }
+      }
+      t.dg.setZero();
+      if (t.dg_dep)
+        for (int c = 0; c < 3; ++c) t.dg[c] = ParamDerivative(model.gravity_expressions[c], k);
+    }
+  }
+  for (size_t fk = 0; fk < model.forces.size(); ++fk) {
+    const Force& fe = model.forces[fk];
+    if (fe.type != ForceType::kBushing) continue;
+    for (ForceTerm& t : force_terms[fk]) {
+      for (int c = 0; c < 6; ++c) {
+        t.dbp.stiffness[c] = ParamDerivative(fe.bushing_stiffness[c], t.k);
+        t.dbp.damping[c] = ParamDerivative(fe.bushing_damping[c], t.k);
+      }
+    }
+  }
+  cached_params = params;
+  cache_valid = true;
+}
+
+// Rebuilds the tangent splines of a spline whose points changed since they were built
+// (one comparison per spline and call, not per parameter).
 void MultibodySystem::Impl::UpdateTangents() {
-  for (size_t k = 0; k < sens.size(); ++k) {
-    for (size_t sp = 0; sp < model.splines.size(); ++sp) {
-      if (!spline_dep[k][sp]) continue;
-      const Spline& s = model.splines[sp].spline;
-      if (tangent_ptrs[k][sp] && tangent_x[k][sp] == s.x() && tangent_y[k][sp] == s.y()) continue;
+  for (size_t sp = 0; sp < model.splines.size(); ++sp) {
+    if (spline_users[sp].empty()) continue;
+    const Spline& s = model.splines[sp].spline;
+    if (tangent_valid[sp] && tangent_x[sp] == s.x() && tangent_y[sp] == s.y()) continue;
+    for (int k : spline_users[sp]) {
       tangents[k][sp] = s.Tangent(spline_dy[k][sp]);
-      tangent_x[k][sp] = s.x();
-      tangent_y[k][sp] = s.y();
       tangent_ptrs[k][sp] = &tangents[k][sp];
     }
+    tangent_x[sp] = s.x();
+    tangent_y[sp] = s.y();
+    tangent_valid[sp] = 1;
   }
 }
 
-// Writes the parameter matrices (fixed patterns: every entry a structural dependence
-// can reach is added, in the same order at every call).
-void MultibodySystem::Impl::RunParameters(const dae::EvalInput& in, dae::EvalOutput& out) {
+// Writes the requested parameter matrices (fixed patterns: every entry a structural
+// dependence can reach is added, in the same order at every call). Only the terms of
+// the dependency lists are visited; the adds of a matrix not requested are skipped
+// (its sink is neither recording nor has values).
+void MultibodySystem::Impl::RunParameters(const dae::EvalInput& in, dae::EvalOutput& out,
+                                          bool values_current) {
   using dae::ParameterMatrix;
   const double* q = in.q;
   const double* v = in.v ? in.v : zeros.data();
   const double* a = in.a ? in.a : zeros.data();
-  const int np = static_cast<int>(sens.size());
   const int nb = static_cast<int>(model.bodies.size());
-  UpdateTangents();
   for (int m = 0; m < dae::kNumParameterMatrices; ++m) psink[m].Begin(out.parameter_matrix[m]);
   Sink& pMa = psink[static_cast<int>(ParameterMatrix::kMassTimesAccDp)];
   Sink& pQ = psink[static_cast<int>(ParameterMatrix::kForceDp)];
   Sink& pC = psink[static_cast<int>(ParameterMatrix::kConstraintDp)];
   Sink& pCv = psink[static_cast<int>(ParameterMatrix::kConstraintVelDp)];
   Sink& pG = psink[static_cast<int>(ParameterMatrix::kAccRhsDp)];
+  const bool ma = pMa.active(), fq = pQ.active();
+  const bool motion = pC.active() || pCv.active() || pG.active();
+  if (ma || fq) UpdateParameterCache();
+  if (motion || fq) UpdateTangents();
 
   // Bodies: M = blockdiag(m I, 4 G^T J G), Q_r = m g, Q_e = 8 G(e')^T J G(e') e.
-  for (int b = 0; b < nb; ++b) {
+  for (int b = 0; b < nb && (ma || fq); ++b) {
+    if (body_terms[b].empty()) continue;
     const Body& body = model.bodies[b];
-    const BodyExpressions& x = body.expressions;
     const int o = Model::coordinate_offset(b);
     const Quat e = Eigen::Map<const Quat>(q + o + 3);
     const Quat ed = Eigen::Map<const Quat>(v + o + 3);
     const Quat ae = Eigen::Map<const Quat>(a + o + 3);
     const Mat34 G = GMatrix(e), Gd = GMatrix(ed);
-    for (int k = 0; k < np; ++k) {
-      const bool dm_dep = !x.mass.empty() && Depends(x.mass[0], k);
-      bool dj_dep = false, dg_dep = false;
-      for (const Expression& ex : x.inertia) dj_dep = dj_dep || Depends(ex, k);
-      for (const Expression& ex : model.gravity_expressions) dg_dep = dg_dep || Depends(ex, k);
-      if (!dm_dep && !dj_dep && !dg_dep) continue;
-      const double dm = dm_dep ? ParamDerivative(x.mass[0], k) : 0.0;
-      Mat3 dJ = Mat3::Zero();
-      if (dj_dep) {
-        for (int c = 0; c < 3; ++c) dJ(c, c) = ParamDerivative(x.inertia[c], k);
-        if (x.inertia.size() == 6) {
-          dJ(0, 1) = dJ(1, 0) = ParamDerivative(x.inertia[3], k);
-          dJ(0, 2) = dJ(2, 0) = ParamDerivative(x.inertia[4], k);
-          dJ(1, 2) = dJ(2, 1) = ParamDerivative(x.inertia[5], k);
+    for (const BodyTerm& t : body_terms[b]) {
+      const int k = t.k;
+      const double dm = t.dm;
+      const Mat3& dJ = t.dJ;
+      const Vec3& dg = t.dg;
+      if (ma) {
+        if (t.dm_dep)
+          for (int c = 0; c < 3; ++c) pMa.Add(o + c, k, dm * a[o + c]);
+        if (t.dj_dep) {
+          const Quat r = 4 * (G.transpose() * (dJ * (G * ae)));
+          for (int c = 0; c < 4; ++c) pMa.Add(o + 3 + c, k, r[c]);
         }
       }
-      Vec3 dg = Vec3::Zero();
-      if (dg_dep)
-        for (int c = 0; c < 3; ++c) dg[c] = ParamDerivative(model.gravity_expressions[c], k);
-      if (dm_dep)
-        for (int c = 0; c < 3; ++c) pMa.Add(o + c, k, dm * a[o + c]);
-      if (dj_dep) {
-        const Quat r = 4 * (G.transpose() * (dJ * (G * ae)));
-        for (int c = 0; c < 4; ++c) pMa.Add(o + 3 + c, k, r[c]);
-      }
-      if (dm_dep || dg_dep) {
-        const Vec3 r = dm * model.gravity + body.mass * dg;
-        for (int c = 0; c < 3; ++c) pQ.Add(o + c, k, r[c]);
-      }
-      if (dj_dep) {
-        const Quat r = 8 * (Gd.transpose() * (dJ * (Gd * e)));
-        for (int c = 0; c < 4; ++c) pQ.Add(o + 3 + c, k, r[c]);
+      if (fq) {
+        if (t.dm_dep || t.dg_dep) {
+          const Vec3 r = dm * model.gravity + body.mass * dg;
+          for (int c = 0; c < 3; ++c) pQ.Add(o + c, k, r[c]);
+        }
+        if (t.dj_dep) {
+          const Quat r = 8 * (Gd.transpose() * (dJ * (Gd * e)));
+          for (int c = 0; c < 4; ++c) pQ.Add(o + 3 + c, k, r[c]);
+        }
       }
     }
   }
 
   // Motion joints: C = m(q) - f(t, p): dC/dp = -df/dp, d(C_q v + C_t)/dp = -df'/dp,
   // dgamma/dp = df''/dp.
-  ExpressionInputs ein;
-  ein.t = in.t;
-  ein.parameters = params.data();
-  ein.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
-  for (const MeasureConstraint& mc : measure_constraints) {
-    if (!mc.motion) continue;
-    const Expression& f = model.joints[mc.joint].value;
-    for (int k = 0; k < np; ++k) {
-      if (!Depends(f, k)) continue;
-      const DirectionalDerivatives d = f.EvaluateDirectional(ein, Direction(k));
-      pC.Add(mc.row, k, -d.dir);
-      pCv.Add(mc.row, k, -d.dir_t);
-      pG.Add(mc.row, k, d.dir_tt);
+  if (motion) {
+    ExpressionInputs ein;
+    ein.t = in.t;
+    ein.parameters = params.data();
+    ein.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
+    for (size_t i = 0; i < measure_constraints.size(); ++i) {
+      const MeasureConstraint& mc = measure_constraints[i];
+      if (!mc.motion) continue;
+      const Expression& f = model.joints[mc.joint].value;
+      for (int k : motion_terms[i]) {
+        const DirectionalDerivatives d = f.EvaluateDirectional(ein, Direction(k));
+        if (pC.active()) pC.Add(mc.row, k, -d.dir);
+        if (pCv.active()) pCv.Add(mc.row, k, -d.dir_t);
+        if (pG.active()) pG.Add(mc.row, k, d.dir_tt);
+      }
     }
   }
 
   // Force elements: dQ_local/dp = P df/dE dE/dp (expressions at fixed measures);
   // bushings: linear in their stiffness and damping.
   Local l;
-  for (size_t fk = 0; fk < model.forces.size(); ++fk) {
+  for (size_t fk = 0; fk < model.forces.size() && fq; ++fk) {
+    const std::vector<ForceTerm>& terms = force_terms[fk];
+    if (terms.empty()) continue;
     const Force& fe = model.forces[fk];
-    if (fe.type == ForceType::kUser) continue;
-    bool any = false;
-    std::vector<char> dep(np, 0);
-    for (int k = 0; k < np; ++k) {
-      if (fe.type == ForceType::kBushing) {
-        for (int c = 0; c < 6; ++c)
-          dep[k] = dep[k] || Depends(fe.bushing_stiffness[c], k) || Depends(fe.bushing_damping[c], k);
-      } else {
-        for (int e = FirstExpression(fe); e < EndExpression(fe); ++e)
-          dep[k] = dep[k] || Depends(ForceExpression(fe, e), k);
-      }
-      any = any || dep[k];
-    }
-    if (!any) continue;
     Gather(BodyOf(fe.i), BodyOf(fe.j), q, v, a, l);
     if (fe.type == ForceType::kBushing) {
       MarkerPairKinematics km;
       TwoMarkerInputs(fe, l, &km, nullptr, nullptr);
       const Vec3 dpos = km.p_i - km.p_j;
-      for (int k = 0; k < np; ++k) {
-        if (!dep[k]) continue;
-        BushingParameters dbp;
-        for (int c = 0; c < 6; ++c) {
-          dbp.stiffness[c] = ParamDerivative(fe.bushing_stiffness[c], k);
-          dbp.damping[c] = ParamDerivative(fe.bushing_damping[c], k);
-        }
-        const ForceTorque y = EvaluateBushing(dbp, km, nullptr);
+      for (const ForceTerm& t : terms) {
+        const ForceTorque y = EvaluateBushing(t.dbp, km, nullptr);
         const Vec3 Fs[2] = {y.force, -y.force};
         const Vec3 Ts[2] = {y.torque, -y.torque - dpos.cross(y.force)};
         for (int sl = 0; sl < 2; ++sl) {
@@ -1697,14 +1862,18 @@ void MultibodySystem::Impl::RunParameters(const dae::EvalInput& in, dae::EvalOut
           const Mat3 A = RotationMatrix(e);
           const Mat3 S = Skew(model.markers[sl == 0 ? fe.i : fe.j].position);
           const Quat ge = 2 * G.transpose() * S * A.transpose() * Fs[sl] + 2 * G.transpose() * A.transpose() * Ts[sl];
-          for (int c = 0; c < 3; ++c) pQ.Add(l.offset[sl] + c, k, Fs[sl][c]);
-          for (int c = 0; c < 4; ++c) pQ.Add(l.offset[sl] + 3 + c, k, ge[c]);
+          for (int c = 0; c < 3; ++c) pQ.Add(l.offset[sl] + c, t.k, Fs[sl][c]);
+          for (int c = 0; c < 4; ++c) pQ.Add(l.offset[sl] + 3 + c, t.k, ge[c]);
         }
       }
       continue;
     }
+    // The element's values and measures at this (t, q, v): Run has just computed them
+    // (force_values, force_expr, measure_values), else they are computed here.
     ForceExpressions& fx = force_expr[fk];
-    const ForceValues fv = ComputeForceValues(static_cast<int>(fk), in.t, q, v, &fx, measure_values.data());
+    const ForceValues fv =
+        values_current ? force_values[fk]
+                       : ComputeForceValues(static_cast<int>(fk), in.t, q, v, &fx, measure_values.data());
     Vec3 f;
     Mat37 dfde;
     ForceVector(static_cast<int>(fk), fv, l, &f, nullptr, nullptr, &dfde);
@@ -1729,17 +1898,14 @@ void MultibodySystem::Impl::RunParameters(const dae::EvalInput& in, dae::EvalOut
     xin.parameters = params.data();
     xin.measures = measure_values.data();
     xin.splines = spline_pointers.empty() ? nullptr : spline_pointers.data();
-    for (int k = 0; k < np; ++k) {
-      if (!dep[k]) continue;
+    for (const ForceTerm& t : terms) {
       Eigen::Matrix<double, 7, 1> dE = Eigen::Matrix<double, 7, 1>::Zero();
-      for (int e = FirstExpression(fe); e < EndExpression(fe); ++e) {
-        const Expression& ex = ForceExpression(fe, e);
-        if (Depends(ex, k)) dE[e] = ex.EvaluateDirectional(xin, Direction(k)).dir;
-      }
+      for (int e = FirstExpression(fe); e < EndExpression(fe); ++e)
+        if (t.mask & (1u << e)) dE[e] = ForceExpression(fe, e).EvaluateDirectional(xin, Direction(t.k)).dir;
       const Eigen::Matrix<double, 14, 1> col = Pfull * (dfde * dE);
       for (int r = 0; r < 14; ++r) {
         if (l.offset[r / 7] < 0 || (torque && r % 7 < 3)) continue;
-        pQ.Add(l.offset[r / 7] + r % 7, k, col[r]);
+        pQ.Add(l.offset[r / 7] + r % 7, t.k, col[r]);
       }
     }
   }
@@ -1772,7 +1938,7 @@ MultibodySystem::MultibodySystem(const Model& model, std::vector<SensitivityPara
   dae::EvalInput ein;
   ein.q = q.data(); ein.v = v.data(); ein.a = a.data(); ein.w = w.data();
   dae::EvalOutput eout;
-  impl_->RunParameters(ein, eout);
+  impl_->RunParameters(ein, eout, /*values_current=*/false);
   const int np = static_cast<int>(impl_->sens.size());
   for (int m = 0; m < dae::kNumParameterMatrices; ++m) {
     const auto pm = static_cast<dae::ParameterMatrix>(m);

@@ -348,6 +348,230 @@ forces:
   }
 }
 
+// A chain of n bodies, each with its own parameters (mass, inertia, spring stiffness and
+// damping, a load, a torque gain) and a torque over a shared spline: many parameters,
+// each reaching one or two elements.
+std::string ManyLocalParametersModel(int n) {
+  std::string t = "format: 1\nparameters:\n";
+  for (int i = 0; i < n; ++i) {
+    const std::string s = std::to_string(i), x = std::to_string(1 + 0.1 * i);
+    t += "  m_" + s + ": " + x + "\n  J_" + s + ": " + std::to_string(0.1 + 0.01 * i) + "\n  k_" + s + ": " +
+         std::to_string(50 + 3 * i) + "\n  c_" + s + ": " + std::to_string(0.5 + 0.05 * i) + "\n  f_" + s + ": " +
+         std::to_string(0.2 * (i + 1)) + "\n  g_" + s + ": " + std::to_string(1 + 0.3 * i) + "\n";
+  }
+  t += "splines:\n  u: {x: [0, 0.3, 0.6, 1.0, 1.5], y: [0, 0.5, -0.2, 0.4, 0.1], interpolation: akima}\n";
+  t += "bodies:\n";
+  for (int i = 0; i < n; ++i) {
+    const std::string s = std::to_string(i);
+    t += "  - {name: b" + s + ", mass: m_" + s + ", inertia: [J_" + s + ", \"2*J_" + s + "\", 0.3], position: [" +
+         std::to_string(0.5 * i) + ", 0, 0]}\n";
+  }
+  t += "measures:\n  - {name: ang, type: rotational, i: b0.cm, axis: z}\n";
+  t += "joints:\n  - {name: drive, type: motion, measure: ang, value: \"0.1*sin(t) + 0.05*spline(u, t)\"}\n";
+  t += "forces:\n";
+  for (int i = 0; i < n; ++i) {
+    const std::string s = std::to_string(i), prev = i == 0 ? "ground.O" : "b" + std::to_string(i - 1) + ".cm";
+    t += "  - {name: s" + s + ", type: spring_damper, i: b" + s + ".cm, j: " + prev + ", stiffness: k_" + s +
+         ", damping: c_" + s + ", free_length: 0.4}\n";
+    t += "  - {name: f" + s + ", type: force, i: b" + s + ".cm, frame: world, value: [f_" + s + ", 0, 0]}\n";
+    t += "  - {name: t" + s + ", type: torque, i: b" + s + ".cm, value: [0, 0, \"g_" + s + "*spline(u, t)\"]}\n";
+  }
+  return t;
+}
+
+// One parameter p reaching almost everything through a chain of dependent parameters
+// (a, b, c computed from p): masses, inertias, gravity, spring laws, force values, a
+// spline ordinate, bushing stiffness and damping, a motion.
+const char* kChainModel = R"Y(format: 1
+parameters:
+  p: 1.2
+  a: "2*p + 1"
+  b: "a*a/10"
+  c: "sin(p) + b"
+  other: 0.7
+splines:
+  u: {x: [0, 0.5, 1, 1.5], y: [0.1, c, -0.3, "other"], interpolation: cubic}
+gravity: [0, "-9 - 0.1*a", "0.01*c"]
+bodies:
+  - {name: b0, mass: "1 + 0.1*b", inertia: ["a/10", "c/10", 0.3, 0.01, "0.001*p", 0], position: [0, 0, 0]}
+  - {name: b1, mass: "2 + 0.1*c", inertia: ["a/10", 0.2, "b/10"], position: [0.6, 0, 0]}
+  - {name: b2, mass: "1 + p*p", inertia: [0.2, 0.2, 0.3], position: [1.2, 0.1, 0]}
+  - {name: b3, mass: other, inertia: [0.2, "other", 0.3], position: [1.8, 0, 0.2]}
+measures:
+  - {name: ang, type: rotational, i: b0.cm, axis: z}
+  - {name: d, type: translational, i: b1.cm, j: b2.cm, component: distance}
+joints:
+  - {name: drive, type: motion, measure: ang, value: "0.1*c*sin(a*t) + 0.01*spline(u, t)"}
+forces:
+  - {name: s01, type: spring_damper, i: b0.cm, j: b1.cm, stiffness: "10*a", damping: b, free_length: "0.5 + 0.01*c", preload: p}
+  - {name: s12, type: spring_damper, i: b1.cm, j: b2.cm, stiffness: "20 + b*d", damping: 0.3, free_length: 0.6}
+  - {name: s23, type: spring_damper, i: b2.cm, j: b3.cm, stiffness: 30, damping: other, free_length: 0.6}
+  - {name: f, type: force, i: b2.cm, frame: i, value: ["spline(u, t)*b", "c*t", 0]}
+  - {name: tq, type: torque, i: b3.cm, value: [0, "other*d", "p*spline(u, d)"]}
+  - {name: bu, type: bushing, i: b1.cm, j: ground.O, stiffness: [a, a, b, 1, 1, c], damping: ["p*p", 0.1, 0.1, 0.1, 0.1, b]}
+)Y";
+
+TEST(SystemParameterDerivatives, ManyParametersEachReachingFewElements) {
+  const std::string text = ManyLocalParametersModel(6);
+  const Model model = LoadModelFromString(text, "model.yaml");
+  std::vector<std::string> names;
+  for (const SensitivityParameter& p : AllSensitivityParameters(model, true)) names.push_back(p.name);
+  EXPECT_EQ(names.size(), 6u * 6u + 5u);
+  const double worst = CheckModel(text, names, 1e-7);
+  std::printf("largest relative difference to central differences: %.3g\n", worst);
+}
+
+TEST(SystemParameterDerivatives, OneParameterReachingManyElementsThroughDependentParameters) {
+  // p alone (a, b, c follow it), p with a (a then independent: p reaches less), and all
+  // with the ordinates.
+  CheckModel(kChainModel, {"p"}, 1e-7);
+  CheckModel(kChainModel, {"a", "p"}, 1e-7);
+  const Model model = LoadModelFromString(kChainModel, "model.yaml");
+  std::vector<std::string> names;
+  for (const SensitivityParameter& p : AllSensitivityParameters(model, true)) names.push_back(p.name);
+  const double worst = CheckModel(kChainModel, names, 1e-7);
+  std::printf("largest relative difference to central differences: %.3g\n", worst);
+}
+
+// Every parameter matrix with all of them requested, and with the regular outputs.
+struct ParameterValues {
+  std::vector<std::vector<double>> pm;
+  std::vector<double> force, mass;
+};
+ParameterValues EvaluateParameterMatrices(MultibodySystem& sys, const std::vector<bool>& which, bool regular,
+                                          double t, const std::vector<double>& q, const std::vector<double>& v,
+                                          const std::vector<double>& a, const std::vector<double>& w) {
+  ParameterValues r;
+  r.pm.resize(dae::kNumParameterMatrices);
+  dae::EvalInput in;
+  in.t = t;
+  in.q = q.data();
+  in.v = v.data();
+  in.a = a.data();
+  in.w = w.data();
+  dae::EvalOutput out;
+  for (int m = 0; m < dae::kNumParameterMatrices; ++m) {
+    if (!which[m]) continue;
+    // Filled with garbage: every entry must be written.
+    r.pm[m].assign(sys.parameter_pattern(static_cast<dae::ParameterMatrix>(m)).nnz(), 123.0);
+    out.parameter_matrix[m] = r.pm[m].data();
+  }
+  if (regular) {
+    r.force.assign(sys.num_coordinates(), 0.0);
+    r.mass.assign(sys.pattern(dae::Matrix::kMass).nnz(), 0.0);
+    out.force = r.force.data();
+    out[dae::Matrix::kMass] = r.mass.data();
+  }
+  EXPECT_EQ(sys.Evaluate(in, out), 0) << sys.last_error();
+  return r;
+}
+
+// A random state (positions, unit Euler parameters, rates, accelerations, weights).
+void RandomState(const MultibodySystem& sys, unsigned seed, std::vector<double>* q, std::vector<double>* v,
+                 std::vector<double>* a, std::vector<double>* w) {
+  const int nq = sys.num_coordinates();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  q->assign(nq, 0.0);
+  v->assign(nq, 0.0);
+  a->assign(nq, 0.0);
+  w->assign(sys.num_constraints(), 0.0);
+  for (int b = 0; b < nq / 7; ++b) {
+    for (int k = 0; k < 3; ++k) (*q)[7 * b + k] = u(rng);
+    double n = 0;
+    for (int k = 0; k < 4; ++k) n += ((*q)[7 * b + 3 + k] = u(rng)) * (*q)[7 * b + 3 + k];
+    for (int k = 0; k < 4; ++k) (*q)[7 * b + 3 + k] /= std::sqrt(n);
+  }
+  for (double& x : *v) x = u(rng);
+  for (double& x : *a) x = u(rng);
+  for (double& x : *w) x = u(rng);
+}
+
+// Reported: an Evaluate requesting one parameter matrix crashed (the adds of the matrices
+// not requested were written through a null pointer). Any subset must give the values of
+// the call with all of them, bit for bit, with or without the regular outputs, and in any
+// order of calls.
+TEST(SystemParameterDerivatives, AnySubsetOfParameterMatricesEqualsAllOfThem) {
+  const std::vector<std::string> texts = {kModel, kChainModel, ManyLocalParametersModel(4)};
+  for (const std::string& text : texts) {
+    const Model model = LoadModelFromString(text, "model.yaml");
+    MultibodySystem sys(model, AllSensitivityParameters(model, true), {});
+    std::vector<double> q, v, a, w;
+    RandomState(sys, 11, &q, &v, &a, &w);
+    const double t = 0.41;
+    const std::vector<bool> all(dae::kNumParameterMatrices, true), none(dae::kNumParameterMatrices, false);
+    const ParameterValues ref = EvaluateParameterMatrices(sys, all, true, t, q, v, a, w);
+    int nonzero = 0;
+    for (const auto& m : ref.pm)
+      for (double x : m) nonzero += x != 0;
+    EXPECT_GT(nonzero, 10);
+    // Every subset (2^6), with and without the regular outputs.
+    for (int subset = 0; subset < (1 << dae::kNumParameterMatrices); ++subset) {
+      std::vector<bool> which(dae::kNumParameterMatrices);
+      for (int m = 0; m < dae::kNumParameterMatrices; ++m) which[m] = (subset >> m) & 1;
+      for (bool regular : {false, true}) {
+        const ParameterValues r = EvaluateParameterMatrices(sys, which, regular, t, q, v, a, w);
+        for (int m = 0; m < dae::kNumParameterMatrices; ++m)
+          if (which[m]) EXPECT_EQ(r.pm[m], ref.pm[m]) << "matrix " << m << " in subset " << subset;
+        if (regular) {
+          EXPECT_EQ(r.force, ref.force) << "subset " << subset;
+          EXPECT_EQ(r.mass, ref.mass) << "subset " << subset;
+        }
+      }
+    }
+    // Each matrix alone at another state, then all: the same values (nothing left over).
+    std::vector<double> q2, v2, a2, w2;
+    RandomState(sys, 12, &q2, &v2, &a2, &w2);
+    std::vector<std::vector<double>> alone(dae::kNumParameterMatrices);
+    for (int m = 0; m < dae::kNumParameterMatrices; ++m) {
+      std::vector<bool> which(dae::kNumParameterMatrices, false);
+      which[m] = true;
+      alone[m] = EvaluateParameterMatrices(sys, which, false, 0.9, q2, v2, a2, w2).pm[m];
+    }
+    const ParameterValues ref2 = EvaluateParameterMatrices(sys, all, false, 0.9, q2, v2, a2, w2);
+    for (int m = 0; m < dae::kNumParameterMatrices; ++m) EXPECT_EQ(alone[m], ref2.pm[m]) << "matrix " << m;
+    EvaluateParameterMatrices(sys, none, true, t, q, v, a, w);
+  }
+}
+
+// The parameter-only derivatives are cached and the spline tangents kept between calls:
+// after the parameter values or a spline's points change, the values are those of a
+// system built with the new ones.
+TEST(SystemParameterDerivatives, NewParameterValuesAndSplinePointsAreUsed) {
+  Model model = LoadModelFromString(kChainModel, "model.yaml");
+  const std::vector<SensitivityParameter> sp = AllSensitivityParameters(model, true);
+  MultibodySystem sys(model, sp, {});
+  std::vector<double> q, v, a, w;
+  RandomState(sys, 5, &q, &v, &a, &w);
+  const std::vector<bool> all(dae::kNumParameterMatrices, true);
+  const ParameterValues before = EvaluateParameterMatrices(sys, all, true, 0.3, q, v, a, w);
+  // New values of p and of the parameters computed from it (the mass of b2 and a bushing
+  // damping are nonlinear in p: their derivatives change), and new ordinates of u.
+  auto index = [&](const std::string& name) {
+    for (size_t j = 0; j < model.parameters.size(); ++j)
+      if (model.parameters[j].name == name) return j;
+    ADD_FAILURE() << name;
+    return size_t{0};
+  };
+  std::vector<double> values = sys.parameters();
+  const double p = 1.5, a_ = 2 * p + 1, b = a_ * a_ / 10;
+  values[index("p")] = p;
+  values[index("a")] = a_;
+  values[index("b")] = b;
+  values[index("c")] = std::sin(p) + b;
+  sys.parameters() = values;
+  Spline& u = model.splines[0].spline;
+  std::vector<double> y = u.y();
+  y[0] = 0.4;
+  y[2] = -0.1;
+  u.SetPoints(u.x(), y);
+  const ParameterValues after = EvaluateParameterMatrices(sys, all, true, 0.3, q, v, a, w);
+  MultibodySystem fresh(model, sp, values);
+  const ParameterValues expected = EvaluateParameterMatrices(fresh, all, true, 0.3, q, v, a, w);
+  for (int m = 0; m < dae::kNumParameterMatrices; ++m) EXPECT_EQ(after.pm[m], expected.pm[m]) << "matrix " << m;
+  EXPECT_NE(after.pm, before.pm);
+}
+
 TEST(SensitivityParameters, ChainThroughDependentParametersAndOverrides) {
   const char* text = "format: 1\nparameters: {a: 2, b: \"a^2\", c: \"3*b + a\", d: \"b\"}\n";
   const Model m = LoadModelFromString(text, "m.yaml");
