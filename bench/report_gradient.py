@@ -5,7 +5,8 @@ Usage: report_gradient.py LINES GRADIENT.json GRADIENT.md [--seconds S]
            [--uptime-before TEXT] [--uptime-after TEXT] [--nproc N] [--commit C]
 
 LINES: one JSON object per line, one per invocation of bench_gradient, tagged by
-run_gradient.sh with "round", "label" and "loadavg_before". Writes GRADIENT.json (the
+run_gradient.sh with "round", "label" and "loadavg_before"; or an earlier GRADIENT.json
+(ending in .json) to write the tables again. Writes GRADIENT.json (the
 context and every measurement) and GRADIENT.md.
 
 Times are process CPU seconds of the measured call (the model is loaded before, not
@@ -95,6 +96,21 @@ def rel_diff(a, b):
     return 0.0 if scale == 0 else abs(a - b) / scale
 
 
+def compare(g, ref):
+    """Largest difference relative to the reference gradient's scale (max |ref|), and the
+    entry with the largest relative difference of its own (key, relative difference)."""
+    scale = max(abs(v) for v in ref.values()) or 1.0
+    scaled = max(abs(g[k] - ref[k]) for k in g) / scale
+    key = max(g, key=lambda k: rel_diff(g[k], ref[k]))
+    return scaled, key, rel_diff(g[key], ref[key])
+
+
+def describe(g, ref):
+    scaled, key, worst = compare(g, ref)
+    return ("%.1e of the gradient's largest entry (entry by entry at most %.1e, at `%s` = %.3g)"
+            % (scaled, worst, key, ref[key]))
+
+
 def gradient_of(rows):
     """wrt -> gradient of the first measurement in rows (single objective)."""
     if not rows:
@@ -139,10 +155,12 @@ def report(d, ctx):
       "%d Newton iterations, %d factorisations in the forward run.\n" % (
           s0["nq"], s0["nc"], s0["parameters_in_model"], s0["steps"], s0["newton_iterations"],
           s0["factorizations"]))
-    w("Run: %s, commit %s, %s CPUs; %d rounds; the whole run took %s s of wall time. "
+    w("Run: %s, program built at commit %s%s, %s CPUs; %d rounds; the whole run took %s s of wall time. "
       "Machine load (`uptime`) before: `%s`; after: `%s`. The machine was shared with "
       "other work; the load average before each measurement is in `gradient.json`.\n" % (
-          ctx.get("date", "?"), ctx.get("commit", "?"), ctx.get("nproc", "?"), rounds,
+          ctx.get("date", "?"), ctx.get("commit", "?"),
+          " (working tree with changes: %s)" % ctx["dirty"] if ctx.get("dirty") else "",
+          ctx.get("nproc", "?"), rounds,
           ctx.get("seconds", "?"), ctx.get("uptime_before", "?").strip(),
           ctx.get("uptime_after", "?").strip()))
     w("Times are process CPU seconds of the measured call (`driver::Assemble` + "
@@ -347,13 +365,12 @@ def report(d, ctx):
     lines = []
     for n, g in fsg.items():
         if g and adj.get(n):
-            worst = max(rel_diff(g[k], adj[n][k]) for k in g)
-            lines.append("forward sensitivities against the adjoint, %d parameter%s: largest "
-                         "relative difference %.1e" % (n, "" if n == 1 else "s", worst))
+            lines.append("forward sensitivities against the adjoint, %d parameter%s: %s" % (
+                n, "" if n == 1 else "s", describe(g, adj[n])))
     if adj.get(1000) and adj.get(100):
-        worst = max(rel_diff(adj[100][k], adj[1000][k]) for k in adj[100])
+        sub = {k: adj[1000][k] for k in adj[100]}
         lines.append("adjoint with 1000 parameters against the adjoint with 100, on the 100 "
-                     "shared ones: %.1e" % worst)
+                     "shared ones: %s" % describe(sub, adj[100]))
     for lab in sorted(l for l in d.labels if "--trajectory-mib" in l):
         words = lab.split()
         i = words.index("--trajectory-mib")
@@ -366,9 +383,8 @@ def report(d, ctx):
         if ref_lab is None:
             continue
         g, gr = gradient_of(d.get(lab)), gradient_of(d.get(ref_lab))
-        worst = max(rel_diff(g[k], gr[k]) for k in g)
-        lines.append("`%s` (checkpoints) against `%s` (every step stored): %.1e" % (
-            lab, ref_lab, worst))
+        lines.append("`%s` (checkpoints) against `%s` (every step stored): %s" % (
+            lab, ref_lab, describe(g, gr)))
     for l in lines:
         w("- " + l)
     fd_labels = sorted((l for l in d.labels if l.startswith("fd ")),
@@ -437,13 +453,23 @@ def main(argv):
     ap.add_argument("--uptime-after", default="")
     ap.add_argument("--nproc")
     ap.add_argument("--commit")
+    ap.add_argument("--dirty", default="")
     ap.add_argument("--date")
     args = ap.parse_args(argv[1:])
     import datetime
-    rows = load_lines(args.lines)
+    if args.lines.endswith(".json"):
+        # Regenerate from an earlier GRADIENT.json (its context unless given here).
+        with open(args.lines) as f:
+            old = json.load(f)
+        rows = old["measurements"]
+        for k, v in old.get("context", {}).items():
+            if getattr(args, k, None) in (None, ""):
+                setattr(args, k, v)
+    else:
+        rows = load_lines(args.lines)
     ctx = {"date": args.date or datetime.datetime.now(datetime.timezone.utc).isoformat(
                timespec="seconds"),
-           "commit": args.commit, "nproc": args.nproc, "seconds": args.seconds,
+           "commit": args.commit, "dirty": args.dirty, "nproc": args.nproc, "seconds": args.seconds,
            "uptime_before": args.uptime_before, "uptime_after": args.uptime_after}
     with open(args.json_out, "w") as f:
         json.dump({"context": ctx, "measurements": rows}, f, indent=1)

@@ -18,6 +18,10 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${1:-$root/build}"
 reps="${REPETITIONS:-3}"
 
+# The commit the program is built from (and the tracked files changed in the working tree,
+# if any), recorded in the results.
+commit="$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)"
+dirty="$(git -C "$root" status --porcelain --untracked-files=no 2>/dev/null | awk '{print $2}' | tr '\n' ' ')"
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" --target bench_gradient -j 2
 
@@ -98,5 +102,5 @@ end="$(date +%s)"
 /usr/bin/python3 "$root/bench/report_gradient.py" "$lines" "$out_dir/gradient.json" \
   "$out_dir/gradient.md" --seconds "$((end - start))" --uptime-before "$uptime_before" \
   --uptime-after "$(uptime)" --nproc "$(nproc)" \
-  --commit "$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  --commit "$commit" --dirty "$dirty"
 echo "wrote bench/results/gradient.json and bench/results/gradient.md"
