@@ -172,6 +172,7 @@ class IdasSensitivitySolver {
         }
     }
     mass_.assign(sys_.pattern(dae::Matrix::kMass).nnz(), 0.0);
+    SetupMassRate(p);
     madq_.assign(sys_.pattern(dae::Matrix::kMassTimesAccDq).nnz(), 0.0);
     fp_.assign(static_cast<size_t>(n_) * np_, 0.0);
     weights_.assign(no_, 0.0);
@@ -382,6 +383,69 @@ class IdasSensitivitySolver {
     return 0;
   }
 
+  // The backward Jacobian's dM/dt block (rows and columns v), column by column through
+  // d(M a)/dq v with a = e_j, and columns that share no row of M in one evaluation
+  // (greedy colouring of the columns of M; 4 evaluations for Euler-parameter bodies,
+  // none for a constant M). mdot_slot_[k]: where entry k of M's pattern, (i, j), goes in
+  // the transposed GGL pattern, i.e. at F_y's entry (nq + j, nq + i).
+  void SetupMassRate(const dae::CscPattern& fy) {
+    mdot_colors_.clear();
+    mdot_slot_.clear();
+    if (sys_.pattern(dae::Matrix::kMassTimesAccDq).nnz() == 0) return;
+    const dae::CscPattern& pm = sys_.pattern(dae::Matrix::kMass);
+    std::vector<std::vector<char>> used;  // rows taken, per colour
+    for (int j = 0; j < pm.cols; ++j) {
+      size_t c = 0;
+      for (; c < used.size(); ++c) {
+        bool free = true;
+        for (int k = pm.col_start[j]; k < pm.col_start[j + 1] && free; ++k) free = !used[c][pm.row_index[k]];
+        if (free) break;
+      }
+      if (c == used.size()) {
+        used.emplace_back(pm.rows, 0);
+        mdot_colors_.emplace_back();
+      }
+      for (int k = pm.col_start[j]; k < pm.col_start[j + 1]; ++k) used[c][pm.row_index[k]] = 1;
+      mdot_colors_[c].push_back(j);
+    }
+    mdot_slot_.assign(pm.nnz(), -1);
+    for (int j = 0; j < pm.cols; ++j)
+      for (int k = pm.col_start[j]; k < pm.col_start[j + 1]; ++k) {
+        const int col = nq_ + pm.row_index[k], row = nq_ + j;
+        for (int f = fy.col_start[col]; f < fy.col_start[col + 1]; ++f)
+          if (fy.row_index[f] == row) mdot_slot_[k] = tperm_[f];
+        if (mdot_slot_[k] < 0)
+          throw std::runtime_error("IDAS adjoint: the GGL Jacobian pattern lacks an entry of the mass matrix");
+      }
+    mdot_a_.assign(nq_, 0.0);
+    mdot_w_.assign(nq_, 0.0);
+  }
+
+  // data (the backward Jacobian in the transposed pattern) += dM/dt in rows and columns v.
+  int AddMassRate(double t, const double* q, const double* v, double* data) {
+    if (mdot_colors_.empty()) return 0;
+    const dae::CscPattern& pm = sys_.pattern(dae::Matrix::kMass);
+    const dae::CscPattern& pk = sys_.pattern(dae::Matrix::kMassTimesAccDq);
+    for (const std::vector<int>& cols : mdot_colors_) {
+      for (int j : cols) mdot_a_[j] = 1.0;
+      dae::EvalInput in;
+      in.t = t;
+      in.q = q;
+      in.v = v;
+      in.a = mdot_a_.data();
+      dae::EvalOutput o;
+      o[dae::Matrix::kMassTimesAccDq] = madq_.data();
+      const int code = sys_.Evaluate(in, o);
+      for (int j : cols) mdot_a_[j] = 0.0;
+      if (code != 0) return code;
+      std::fill(mdot_w_.begin(), mdot_w_.end(), 0.0);
+      dae::MultiplyAdd(pk, madq_.data(), 1.0, v, mdot_w_.data());  // sum over the colour of columns of dM/dt
+      for (int j : cols)
+        for (int k = pm.col_start[j]; k < pm.col_start[j + 1]; ++k) data[mdot_slot_[k]] += mdot_w_[pm.row_index[k]];
+    }
+    return 0;
+  }
+
   // out += (dM/dt) x = d(M x)/dq q', with q' = v.
   int MassRateTimes(double t, const double* q, const double* v, const double* x, double* out) {
     if (sys_.pattern(dae::Matrix::kMassTimesAccDq).nnz() == 0) return 0;
@@ -470,6 +534,7 @@ class IdasSensitivitySolver {
     ThrowIf(IDAAdjInit(mem, opt_.checkpoint_steps,
                        opt_.hermite_interpolation ? IDA_HERMITE : IDA_POLYNOMIAL),
             "IDAAdjInit");
+    fresh_factorizations_ = true;
     if (!Advance(true, result)) return false;
     const double T = t_final_;
     double t = T;
@@ -494,20 +559,30 @@ class IdasSensitivitySolver {
       if (MassTimes(T, y.data(), dummy.data(), dummy.data()) != 0) return Fail("mass matrix at t_end");
     }
     const Dense M = DenseOf(sys_.pattern(dae::Matrix::kMass), mass_);
-    const Eigen::PartialPivLU<Dense> Mlu(M);
-    const Dense MinvCqT = Mlu.solve(Cq.transpose());
-    const Eigen::CompleteOrthogonalDecomposition<Dense> S(Cq * MinvCqT);
+    // M itself is singular for every body with Euler parameters (4 G^T J G e = 0) and for
+    // massless bodies; only the saddle-point matrix K = [M C_q^T; C_q 0] is regular (M
+    // positive definite on the null space of C_q, which the normalisation rows 2 e^T
+    // provide). Every "M^-1" of the adjoint's terminal values is a solve with K.
+    Dense K = Dense::Zero(nq_ + nc_, nq_ + nc_);
+    K.topLeftCorner(nq_, nq_) = M;
+    K.topRightCorner(nq_, nc_) = Cq.transpose();
+    K.bottomLeftCorner(nc_, nq_) = Cq;
+    const Eigen::PartialPivLU<Dense> Klu(K);
+    const double k_rcond = Klu.rcond();
+    if (!(k_rcond > 1e-15))
+      return Fail("the matrix [M C_q^T; C_q 0] at t_end is singular (reciprocal condition " + Num(k_rcond) +
+                  "): the constraints must be independent and M positive definite where C_q v = 0");
+    // (x, y) with M x + C_q^T y = a, C_q x = b.
+    auto kkt = [&](const Vec& a, const Vec& bb) {
+      Vec rhs(nq_ + nc_);
+      rhs << a, bb;
+      return Vec(Klu.solve(rhs));
+    };
     const Eigen::CompleteOrthogonalDecomposition<Dense> CCt(Cq * Cq.transpose());
     std::vector<double> fpT(fp_.size());
     if (ggl_.ParameterJacobian(T, y.data(), yp.data(), fpT.data()) != 0)
       return Fail("the parameter derivatives at t_end failed");
     const Eigen::Map<const Dense> FpT(fpT.data(), n_, np_);
-    // Algebraic block of F_y^T acting on (chi3, chi4), rows q and v.
-    const Dense Pq = Fy.block(2 * nq_, 0, 2 * nc_, nq_).transpose();
-    const Dense Pv = Fy.block(2 * nq_, nq_, 2 * nc_, nq_).transpose();
-    Dense A(2 * nc_, 2 * nc_);
-    A << Cq * Pq, Cq * Mlu.solve(Pv);  // d/dt of C_q chi1 = 0 and C_q chi2 = 0
-    const Eigen::CompleteOrthogonalDecomposition<Dense> Alu(A);
 
     if (Gradients(true, xT, 0, no_) != 0) return Fail("terminal gradient");
     std::vector<PointGradient> terminal = grads_;
@@ -520,12 +595,20 @@ class IdasSensitivitySolver {
       b->objective = i;
       const PointGradient& tg = terminal[i];
       const Eigen::Map<const Vec> phi_q(tg.dq.data(), nq_), phi_v(tg.dv.data(), nq_);
-      b->beta = S.solve(Cq * Mlu.solve(phi_v));
-      const Vec chi2 = Mlu.solve(phi_v - Cq.transpose() * b->beta);
+      // M chi2 + C_q^T beta = phi_v^T, C_q chi2 = 0.
+      const Vec chi2_beta = kkt(phi_v, Vec::Zero(nc_));
+      const Vec chi2 = chi2_beta.head(nq_);
+      b->beta = chi2_beta.tail(nc_);
       b->alpha = CCt.solve(Cq * (phi_q - Vq.transpose() * b->beta));
       const Vec chi1 = phi_q - Cq.transpose() * b->alpha - Vq.transpose() * b->beta;
       b->phi_p = tg.dp;
-      // Consistent chi3, chi4 and chi' at T.
+      // Consistent chi3, chi4 and chi' at T. With r = F_y^T (chi1, chi2, 0, 0) the
+      // adjoint's q and v rows are
+      //   chi1' = base1 + C_q^T chi3 + V_q^T chi4,   M chi2' = base2 + C_q^T chi4,
+      // (base1 = r_q - g_q, base2 = r_v - dM/dt chi2 - g_v), and the derivatives of the
+      // constraints ((C_q)' = V_q along the solution) C_q chi1' = -V_q chi1,
+      // C_q chi2' = -V_q chi2. The second pair is a saddle-point system in (chi2', -chi4);
+      // then chi3 from the first.
       Vec chi = Vec::Zero(n_);
       chi.head(nq_) = chi1;
       chi.segment(nq_, nq_) = chi2;
@@ -537,13 +620,16 @@ class IdasSensitivitySolver {
         return Fail("dM/dt at t_end");
       const Vec base1 = r.head(nq_) - g_q;
       const Vec base2 = r.segment(nq_, nq_) - mdot - g_v;
-      Vec rhs(2 * nc_);
-      rhs << -Vq * chi1 - Cq * base1, -Vq * chi2 - Cq * Mlu.solve(base2);
-      const Vec z = Alu.solve(rhs);
-      chi.tail(2 * nc_) = z;
+      const Vec chi2p_chi4 = kkt(base2, -Vq * chi2);
+      const Vec chi4 = -chi2p_chi4.tail(nc_);
+      const Vec chi3 = CCt.solve(-Vq * chi1 - Cq * (base1 + Vq.transpose() * chi4));
+      chi.segment(2 * nq_, nc_) = chi3;
+      chi.tail(nc_) = chi4;
       Vec chip = Vec::Zero(n_);
-      chip.head(nq_) = base1 + Pq * z;
-      chip.segment(nq_, nq_) = Mlu.solve(base2 + Pv * z);
+      chip.head(nq_) = base1 + Cq.transpose() * chi3 + Vq.transpose() * chi4;
+      chip.segment(nq_, nq_) = chi2p_chi4.head(nq_);
+      if (!chi.allFinite() || !chip.allFinite())
+        return Fail("the adjoint terminal values of objective " + obj_.names()[i] + " are not finite");
 
       b->yB.reset(N_VNew_Serial(n_, ctx_.get()));
       b->ypB.reset(N_VNew_Serial(n_, ctx_.get()));
@@ -648,6 +734,16 @@ class IdasSensitivitySolver {
     return self->Guard("Jacobian", [&] {
       std::copy(self->col_start_.begin(), self->col_start_.end(), SUNSparseMatrix_IndexPointers(J));
       std::copy(self->row_index_.begin(), self->row_index_.end(), SUNSparseMatrix_IndexValues(J));
+      // Adjoint: IDAS replays each checkpoint interval (IDAAdataStore) and stores its steps
+      // in an array sized by the checkpoint interval, without a bound check; the replay
+      // must take exactly the steps of the run. KLU's refactorisation reuses the pivots of
+      // the last full factorisation, which in the replay is another one than in the run
+      // (the intervals are replayed last to first), so the iterates differed in the last
+      // bits, a replay ended a step later than its interval and wrote past IDAS's array
+      // (a segfault in IDASolveB, e.g. the gradient demo at rtol 1e-11). A full
+      // factorisation at every Jacobian makes each step a function of the checkpointed
+      // data only.
+      if (self->fresh_factorizations_) SUNLinSolInitialize(self->solver_.get());
       return self->SystemCode(self->ggl_.Jacobian(t, cj, N_VGetArrayPointer(y), N_VGetArrayPointer(yp),
                                                   SUNSparseMatrix_Data(J)), t);
     });
@@ -747,7 +843,7 @@ class IdasSensitivitySolver {
     });
   }
 
-  // d resB/d chi + cjB d resB/d chi' = -(F_y - cjB F_y')^T (without dM/dt).
+  // d resB/d chi + cjB d resB/d chi' = -(F_y - cjB F_y')^T + dM/dt in the block (v, v).
   static int JacB(double t, double cjB, N_Vector y, N_Vector yp, N_Vector, N_Vector, N_Vector,
                   SUNMatrix J, void* udB, N_Vector, N_Vector, N_Vector) {
     auto* b = static_cast<Backward*>(udB);
@@ -760,7 +856,8 @@ class IdasSensitivitySolver {
       std::copy(self->trow_index_.begin(), self->trow_index_.end(), SUNSparseMatrix_IndexValues(J));
       double* data = SUNSparseMatrix_Data(J);
       for (size_t k = 0; k < self->jac_.size(); ++k) data[self->tperm_[k]] = -self->jac_[k];
-      return 0;
+      const double* yy = N_VGetArrayPointer(y);
+      return self->SystemCode(self->AddMassRate(t, yy, yy + self->nq_, data), t);
     });
   }
 
@@ -808,7 +905,11 @@ class IdasSensitivitySolver {
   std::vector<int> tperm_;
   std::vector<double> jac_, mass_, madq_, fp_, weights_;
   std::vector<PointGradient> grads_;
+  std::vector<std::vector<int>> mdot_colors_;
+  std::vector<int> mdot_slot_;
+  std::vector<double> mdot_a_, mdot_w_;
   double t_final_ = 0;
+  bool fresh_factorizations_ = false;
   std::string error_, callback_error_, ida_error_;
   // Destroyed in reverse order: IDAS memory first, the context last.
   ContextPtr ctx_;

@@ -17,23 +17,26 @@
 //   Petzold, Serban (SIAM J. Sci. Comput. 24 (2003) 1076-1089), its terminal values
 //   must satisfy those constraints, which the terminal part phi(q, v) of an objective
 //   cannot in general; they are made so with multipliers alpha, beta:
-//     chi2(T) = M^-1 (phi_v^T - C_q^T beta),       C_q chi2(T) = 0,
+//     M chi2(T) + C_q^T beta = phi_v^T,               C_q chi2(T) = 0,
 //     chi1(T) = phi_q^T - C_q^T alpha - V_q^T beta,  C_q chi1(T) = 0   (V_q = d(C_q v + C_t)/dq),
 //   which is exact because the sensitivities satisfy C_q s_q = -C_p and
 //   V_q s_q + C_q s_v = -V_p at T:
 //     dG/dp = int (g_p - chi^T F_p) dt + phi_p - alpha^T C_p - beta^T V_p
 //             + chi1(t0)^T dq0/dp + chi2(t0)^T M dv0/dp.
 //   chi3(T), chi4(T) and chi'(T) are computed consistently (the derivatives of the two
-//   constraints). Supported: g(t, q, v, p) and phi(T, q, v, p). Refused with a message:
+//   constraints). M alone is singular for bodies with Euler parameters (4 G^T J G e = 0)
+//   and massless bodies: every M^-1 of these formulas is a solve with the saddle-point
+//   matrix [M C_q^T; C_q 0], which must be regular (refused with a message otherwise). Supported: g(t, q, v, p) and phi(T, q, v, p). Refused with a message:
 //   objectives that depend on a or lambda (ObjectiveFunction::depends_on_acceleration /
 //   depends_on_multipliers): g_lambda makes C_q chi2(T) = g_lambda, so chi2(T) != 0 and
 //   the boundary term chi2^T M s_v(T) would need the forward sensitivities the adjoint
 //   avoids; a dependence on a would need the time derivative of g_a. Use the forward
-//   method for those. The backward Jacobian leaves out the term dM/dt chi2 (exact for a
-//   constant mass matrix; otherwise it only slows Newton, the residual has it). The
-//   backward residual evaluates the GGL Jacobian (F_y^T chi) at every call: simple,
+//   method for those. The backward Jacobian includes dM/dt (by d(M a)/dq v over a
+//   colouring of the columns of M). The backward residual evaluates the GGL Jacobian (F_y^T chi) at every call: simple,
 //   not cheap for large systems. C_q must have full row rank (independent constraints,
-//   as the IDA integrator needs anyway).
+//   as the IDA integrator needs anyway). The adjoint's forward run factorises every
+//   Jacobian afresh (no KLU refactorisation): IDAS's replay of a checkpoint interval must
+//   repeat the run's steps bit for bit, or it writes past its storage of the interval.
 //
 // Both methods run with the IDA integrator's settings (IdaOptions). The forward method
 // stops at each requested output time like a simulation does; the adjoint ignores the
