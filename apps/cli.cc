@@ -73,11 +73,15 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     cl.command = Command::kConvert;
   else if (first == "gradient")
     cl.command = Command::kGradient;
+  else if (first == "optimize")
+    cl.command = Command::kOptimize;
   else
     throw UsageError("unknown command '" + first + "'", true);
   ++i;
 
   const bool grad = cl.command == Command::kGradient;
+  // `optimize` takes -o, --json and --quiet only (its settings are in the problem file).
+  const bool opt = cl.command == Command::kOptimize;
   // `gradient` takes every option of `simulate` (its forward run is a simulation).
   const bool sim = cl.command == Command::kSimulate || grad;
   while (i < args.size()) {
@@ -127,10 +131,11 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--version") {
       no_value();
       cl.version = true;
-    } else if (arg == "--json" && (cl.command == Command::kInfo || grad)) {
+    } else if (arg == "--json" && (cl.command == Command::kInfo || grad || opt)) {
       no_value();
       cl.json = true;
     } else if (arg == "--set") {
+      if (opt) throw UsageError("option --set is not for `optimize` (the problem file names the model)", true);
       const std::string a = value();
       if (!LooksLikeAssignment(a)) throw UsageError("--set: expected NAME=VALUE, got '" + a + "'");
       std::vector<std::string> assignments{a};
@@ -141,8 +146,8 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
         cl.parameter_overrides[s.substr(0, eq)] = ParseNumber("--set " + s, s.substr(eq + 1));
       }
     } else if (arg == "-o" || arg == "--output") {
-      if (!sim && cl.command != Command::kConvert)
-        throw UsageError("option " + arg + " is only for `simulate`, `gradient` and `convert`", true);
+      if (!sim && !opt && cl.command != Command::kConvert)
+        throw UsageError("option " + arg + " is only for `simulate`, `gradient`, `optimize` and `convert`", true);
       cl.output_path = value();
       if (cl.output_path.empty()) throw UsageError(arg + ": empty file name");
     } else if (arg == "--integrator") {
@@ -236,7 +241,7 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     }
   }
   if (!cl.help && !cl.version && cl.model_path.empty())
-    throw UsageError("no model file given", true);
+    throw UsageError(opt ? "no problem file given" : "no model file given", true);
   return cl;
 }
 

@@ -26,14 +26,14 @@ class UsageError : public std::runtime_error {
   bool show_usage_;
 };
 
-enum class Command { kSimulate, kInfo, kCheck, kConvert, kGradient };
+enum class Command { kSimulate, kInfo, kCheck, kConvert, kGradient, kOptimize };
 
 struct CommandLine {
   Command command = Command::kSimulate;
   bool help = false;
   bool version = false;
-  std::string model_path;
-  // simulate: empty means DefaultResultsPath(model_path); convert: empty means stdout.
+  std::string model_path;  // optimize: the problem file
+  // simulate, optimize: empty means DefaultResultsPath(model_path); convert: stdout.
   std::string output_path;
   driver::SettingsOverrides overrides;
   std::map<std::string, double> parameter_overrides;

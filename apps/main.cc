@@ -5,6 +5,7 @@
 //   mbdae check MODEL.yaml                load, assemble, check determinacy
 //   mbdae convert MODEL.fds [-o OUT.yaml] the model in this project's format
 //   mbdae gradient MODEL.yaml [options]   dG/dp of the model's objectives
+//   mbdae optimize PROBLEM.yaml [options] optimal control / identification with Ipopt
 //
 // MODEL may be a FreeDyn model file (.fds, any letter case) for every command.
 // Output: progress on stderr, the summary and `info`/`check` reports on stdout, errors
@@ -25,6 +26,7 @@
 
 #include "apps/cli.h"
 #include "driver/gradient.h"
+#include "driver/optimize.h"
 #include "driver/simulation.h"
 #include "mbs/freedyn.h"
 #include "mbs/loader.h"
@@ -46,6 +48,7 @@ const char* kUsage =
     "  mbdae gradient MODEL.yaml [--objective NAME ...] [--wrt NAME,NAME,...] [--wrt-splines]\n"
     "                 [--method adjoint|forward|fd] [--fd-step S] [--trajectory-memory MIB]\n"
     "                 [every simulate option] [--json] [-o RESULTS.h5]\n"
+    "  mbdae optimize PROBLEM.yaml [-o RESULTS.h5] [--json] [--quiet]\n"
     "  mbdae --help | --version\n";
 
 const char* kHelp =
@@ -93,6 +96,20 @@ const char* kHelp =
     "  -o FILE               the forward run's results file plus /objectives/NAME with\n"
     "                        the value and the gradient (default: no file)\n"
     "The simulate options set the forward run.\n"
+    "\n"
+    "optimize: single shooting over model parameters and spline ordinates with Ipopt\n"
+    "(exact gradients, limited-memory Hessian). PROBLEM.yaml names the model (relative\n"
+    "to the problem file), the variables with bounds, the objective to minimise, the\n"
+    "constraints (objectives of the model with bounds), simulation overrides, Ipopt\n"
+    "options and the gradient method (docs/sensitivities.md, docs/cli.md):\n"
+    "  -o FILE               the final run plus /optimization (default: the problem's\n"
+    "                        path with .h5)\n"
+    "  --json                one JSON object on stdout (status, objective, iterations,\n"
+    "                        variables, constraint_violation, ...)\n"
+    "  --quiet               no progress lines, no report\n"
+    "One progress line per Ipopt iteration goes to stderr. Exit 0 when Ipopt solved the\n"
+    "problem (or to an acceptable level), 3 otherwise (the final point and the history\n"
+    "are still written).\n"
     "\n"
     "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md).\n"
     "\n"
@@ -232,6 +249,35 @@ int RunGradient(const CommandLine& cl) {
   return 0;
 }
 
+int RunOptimize(const CommandLine& cl) {
+  // Every mistake of the problem file (and of its model) before anything runs.
+  const driver::OptimizationProblem problem = driver::LoadOptimizationProblem(cl.model_path);
+  driver::OptimizeOptions oo;
+  oo.results_path = cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path;
+  if (!cl.quiet)
+    oo.iteration = [](const driver::OptimizationIteration& it) {
+      if (it.iteration % 20 == 0)
+        std::fprintf(stderr, "mbdae: %4s  %-22s  %-10s  %-10s  %-9s  %s\n", "iter", "objective", "violation",
+                     "dual inf", "step", "gradients");
+      std::fprintf(stderr, "mbdae: %4d  %22.14e  %10.3e  %10.3e  %9.2e  %ld\n", it.iteration, it.objective,
+                   it.constraint_violation, it.dual_infeasibility, it.step, it.gradient_evaluations);
+      std::fflush(stderr);
+    };
+  const driver::OptimizationResult r = driver::Optimize(problem, oo);
+  if (cl.json)
+    std::cout << r.Json() << "\n" << std::flush;
+  else if (!cl.quiet)
+    std::cout << r.Report() << std::flush;
+  if (!r.solved) {
+    PrintError("not solved (Ipopt: " + r.ipopt_status + ")" +
+               (r.failure_reason.empty() ? std::string() : ": " + r.failure_reason) +
+               (r.final_run.results_path.empty() ? std::string()
+                                                 : "; the final point and the history are in " + oo.results_path));
+    return 3;
+  }
+  return 0;
+}
+
 int Run(int argc, char** argv) {
   CommandLine cl = ParseCommandLine(std::vector<std::string>(argv + 1, argv + argc));
   if (cl.help) {
@@ -249,6 +295,7 @@ int Run(int argc, char** argv) {
       case Command::kCheck: return RunCheck(cl);
       case Command::kConvert: return RunConvert(cl);
       case Command::kGradient: return RunGradient(cl);
+      case Command::kOptimize: return RunOptimize(cl);
     }
   } catch (const driver::InputError& e) {
     throw driver::InputError(NameFile(cl.model_path, e.what()));

@@ -417,6 +417,68 @@ void AddToResultsFile(const std::string& path, const std::vector<ResultsGroup>& 
   Check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "flush " + path);
 }
 
+namespace {
+
+// The parent group of dataset_path (created) and the dataset's name in it; a dataset
+// already there is deleted.
+std::pair<Handle, std::string> PrepareDataset(hid_t file, const std::string& dataset_path) {
+  const auto slash = dataset_path.find_last_of('/');
+  const std::string name = slash == std::string::npos ? dataset_path : dataset_path.substr(slash + 1);
+  CheckName(name, "dataset");
+  Handle parent = slash == std::string::npos || slash == 0
+                      ? Check(H5Gopen2(file, "/", H5P_DEFAULT), H5Gclose, "open group /")
+                      : OpenOrCreateGroup(file, dataset_path.substr(0, slash));
+  if (H5Lexists(parent.get(), name.c_str(), H5P_DEFAULT) > 0)
+    Check(H5Ldelete(parent.get(), name.c_str(), H5P_DEFAULT), "delete dataset " + dataset_path);
+  return {std::move(parent), name};
+}
+
+}  // namespace
+
+void AddTableToResultsFile(const std::string& path, const std::string& dataset_path, int cols,
+                           const std::vector<double>& values, const std::vector<std::string>& columns) {
+  if (cols < 1 || values.size() % static_cast<size_t>(cols) != 0 || columns.size() != static_cast<size_t>(cols))
+    throw std::runtime_error("results file: table " + dataset_path + " has " + std::to_string(values.size()) +
+                             " values for " + std::to_string(cols) + " columns and " +
+                             std::to_string(columns.size()) + " column names");
+  QuietErrors quiet;
+  Handle file = Check(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose, "open " + path);
+  {
+    auto [parent, name] = PrepareDataset(file.get(), dataset_path);
+    hsize_t dims[2] = {values.size() / static_cast<size_t>(cols), static_cast<hsize_t>(cols)};
+    Handle space = Check(H5Screate_simple(2, dims, nullptr), H5Sclose, "create a dataspace");
+    Handle ds = Check(H5Dcreate2(parent.get(), name.c_str(), H5T_IEEE_F64LE, space.get(), H5P_DEFAULT,
+                                 H5P_DEFAULT, H5P_DEFAULT),
+                      H5Dclose, "create dataset " + dataset_path);
+    if (!values.empty())
+      Check(H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+            "write dataset " + dataset_path);
+    WriteStringsAttribute(ds.get(), "columns", columns, dataset_path + "/columns");
+  }
+  Check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "flush " + path);
+}
+
+void AddStringsToResultsFile(const std::string& path, const std::string& dataset_path,
+                             const std::vector<std::string>& values) {
+  QuietErrors quiet;
+  Handle file = Check(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose, "open " + path);
+  {
+    auto [parent, name] = PrepareDataset(file.get(), dataset_path);
+    Handle type = VariableStringType();
+    hsize_t n = values.size();
+    Handle space = Check(H5Screate_simple(1, &n, nullptr), H5Sclose, "create a dataspace");
+    Handle ds = Check(H5Dcreate2(parent.get(), name.c_str(), type.get(), space.get(), H5P_DEFAULT,
+                                 H5P_DEFAULT, H5P_DEFAULT),
+                      H5Dclose, "create dataset " + dataset_path);
+    std::vector<const char*> ptrs;
+    for (const auto& s : values) ptrs.push_back(s.c_str());
+    if (!values.empty())
+      Check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()),
+            "write dataset " + dataset_path);
+  }
+  Check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "flush " + path);
+}
+
 void ResultsFile::SetAttribute(const std::string& name, long value) {
   QuietErrors quiet;
   impl_->DeleteAttributeIfPresent(name);

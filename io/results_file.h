@@ -103,4 +103,15 @@ struct ResultsGroup {
 void AddToResultsFile(const std::string& path, const std::vector<ResultsGroup>& groups,
                       const std::vector<std::pair<std::string, std::string>>& root_strings = {});
 
+// Added to an existing results file: a rows x cols float64 dataset at dataset_path (e.g.
+// "optimization/history"; parent groups created) from row-major values (rows =
+// values.size() / cols), with the string-list attribute `columns` naming the columns;
+// and a 1-D dataset of variable-length UTF-8 strings. Each replaces a dataset of the same
+// path. Throw std::runtime_error if the file cannot be opened or written, or (table) if
+// cols < 1, values.size() is not a multiple of cols or columns.size() != cols.
+void AddTableToResultsFile(const std::string& path, const std::string& dataset_path, int cols,
+                           const std::vector<double>& values, const std::vector<std::string>& columns);
+void AddStringsToResultsFile(const std::string& path, const std::string& dataset_path,
+                             const std::vector<std::string>& values);
+
 }  // namespace mbdae::io

@@ -1,0 +1,804 @@
+#include "driver/optimize.h"
+
+#include <IpIpoptApplication.hpp>
+#include <IpSolveStatistics.hpp>
+#include <IpTNLP.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "io/results_file.h"
+#include "mbs/freedyn.h"
+#include "mbs/loader.h"
+
+namespace mbdae::driver {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+double CpuSeconds() { return double(std::clock()) / CLOCKS_PER_SEC; }
+
+std::string Num(double x) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", x);
+  return buf;
+}
+
+std::string JsonNumber(double x) {
+  if (!std::isfinite(x)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", x);
+  return buf;
+}
+
+std::string JsonString(const std::string& s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string Join(const std::vector<std::string>& names) {
+  std::string out;
+  for (size_t i = 0; i < names.size(); ++i) out += (i ? ", " : "") + names[i];
+  return out;
+}
+
+// ---- the problem file ------------------------------------------------------------
+
+class ProblemReader {
+ public:
+  explicit ProblemReader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void Fail(const YAML::Mark& mark, const std::string& element, const std::string& what) const {
+    std::ostringstream s;
+    s << file_ << ":";
+    if (mark.line >= 0) s << mark.line + 1 << ":" << mark.column + 1 << ":";
+    s << " " << element << ": " << what;
+    throw InputError(s.str());
+  }
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& element, const std::string& what) const {
+    Fail(node.Mark(), element, what);
+  }
+
+  static std::string Kind(const YAML::Node& n) {
+    switch (n.Type()) {
+      case YAML::NodeType::Scalar: return "'" + n.Scalar() + "'";
+      case YAML::NodeType::Sequence: return "a list";
+      case YAML::NodeType::Map: return "a mapping";
+      default: return "nothing";
+    }
+  }
+
+  void CheckKeys(const YAML::Node& node, const std::string& element, const std::vector<std::string>& allowed) const {
+    if (!node.IsMap()) Fail(node, element, "expected a mapping (key: value), got " + Kind(node));
+    for (auto it = node.begin(); it != node.end(); ++it) {
+      const std::string key = it->first.as<std::string>();
+      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end())
+        Fail(it->first, element, "unknown key '" + key + "' (expected one of: " + Join(allowed) + ")");
+    }
+  }
+
+  double Number(const YAML::Node& n, const std::string& element, const std::string& key) const {
+    if (!n.IsScalar()) Fail(n, element, key + " must be a number, got " + Kind(n));
+    double x = 0;
+    if (!YAML::convert<double>::decode(n, x) || std::isnan(x))
+      Fail(n, element, key + " must be a number, got " + Kind(n));
+    return x;
+  }
+
+  std::string Name(const YAML::Node& n, const std::string& element, const std::string& key) const {
+    if (!n.IsScalar() || n.Scalar().empty()) Fail(n, element, key + " must be a name, got " + Kind(n));
+    return n.Scalar();
+  }
+
+  bool Bool(const YAML::Node& n, const std::string& element, const std::string& key) const {
+    bool b = false;
+    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, b))
+      Fail(n, element, key + " must be true or false, got " + Kind(n));
+    return b;
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+// The objective names of the model.
+std::vector<std::string> ObjectiveNames(const mbs::Model& model) {
+  std::vector<std::string> names;
+  for (const auto& o : model.objectives) names.push_back(o.name);
+  return names;
+}
+
+void ReadSimulation(const ProblemReader& r, const YAML::Node& node, SettingsOverrides* o) {
+  const std::string element = "simulation";
+  r.CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida"});
+  if (const YAML::Node n = node["t_end"]) o->t_end = r.Number(n, element, "t_end");
+  if (const YAML::Node n = node["output_step"]) o->output_step = r.Number(n, element, "output_step");
+  if (const YAML::Node n = node["integrator"]) {
+    const std::string v = r.Name(n, element, "integrator");
+    if (v == "hht")
+      o->integrator = mbs::IntegratorKind::kHht;
+    else if (v == "ida")
+      o->integrator = mbs::IntegratorKind::kIda;
+    else
+      r.Fail(n, element, "integrator must be hht or ida, got '" + v + "'");
+  }
+  if (const YAML::Node h = node["hht"]) {
+    r.CheckKeys(h, element + " hht", {"alpha", "step", "adaptive", "tolerance", "modified", "form"});
+    if (const YAML::Node n = h["alpha"]) o->hht_alpha = r.Number(n, element, "hht alpha");
+    if (const YAML::Node n = h["step"]) o->hht_step = r.Number(n, element, "hht step");
+    if (const YAML::Node n = h["adaptive"]) o->hht_adaptive = r.Bool(n, element, "hht adaptive");
+    if (const YAML::Node n = h["tolerance"]) o->hht_tolerance = r.Number(n, element, "hht tolerance");
+    if (const YAML::Node n = h["modified"]) o->hht_modified = r.Bool(n, element, "hht modified");
+    if (const YAML::Node n = h["form"]) {
+      const std::string v = r.Name(n, element, "hht form");
+      if (v != "equilibrium" && v != "negrut")
+        r.Fail(n, element, "hht form must be equilibrium or negrut, got '" + v + "'");
+      o->hht_form = v;
+    }
+  }
+  if (const YAML::Node i = node["ida"]) {
+    r.CheckKeys(i, element + " ida", {"rtol", "atol"});
+    if (const YAML::Node n = i["rtol"]) o->ida_rtol = r.Number(n, element, "ida rtol");
+    if (const YAML::Node n = i["atol"]) o->ida_atol = r.Number(n, element, "ida atol");
+  }
+}
+
+// Checks each option against Ipopt's registry (name, type, range) on a scratch
+// application, so that a bad option is named with its line before anything runs.
+void ReadIpoptOptions(const ProblemReader& r, const YAML::Node& node, std::vector<IpoptOption>* out) {
+  const std::string element = "ipopt";
+  if (!node.IsMap()) r.Fail(node, element, "expected a mapping of Ipopt options, got " + r.Kind(node));
+  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = new Ipopt::IpoptApplication(false);
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const std::string name = it->first.as<std::string>();
+    const YAML::Node& v = it->second;
+    const std::string what = "option '" + name + "'";
+    Ipopt::SmartPtr<const Ipopt::RegisteredOption> reg = app->RegOptions()->GetOption(name);
+    if (!Ipopt::IsValid(reg)) r.Fail(it->first, element, "unknown Ipopt option '" + name + "'");
+    if (!v.IsScalar()) r.Fail(v, element, what + " must be a number or a string, got " + r.Kind(v));
+    // A quoted scalar (tag "!") is a string whatever it looks like.
+    const bool quoted = v.Tag() == "!";
+    IpoptOption o;
+    o.name = name;
+    bool accepted = false;
+    switch (reg->Type()) {
+      case Ipopt::OT_Number: {
+        double x = 0;
+        if (quoted || !YAML::convert<double>::decode(v, x) || !std::isfinite(x))
+          r.Fail(v, element, what + " takes a number, got " + r.Kind(v));
+        o.kind = IpoptOption::Kind::kNumber;
+        o.number = x;
+        accepted = app->Options()->SetNumericValue(name, x);
+        break;
+      }
+      case Ipopt::OT_Integer: {
+        long long k = 0;
+        if (quoted || !YAML::convert<long long>::decode(v, k) || k < std::numeric_limits<int>::min() ||
+            k > std::numeric_limits<int>::max())
+          r.Fail(v, element, what + " takes an integer, got " + r.Kind(v));
+        o.kind = IpoptOption::Kind::kInteger;
+        o.integer = static_cast<int>(k);
+        accepted = app->Options()->SetIntegerValue(name, o.integer);
+        break;
+      }
+      default:
+        o.kind = IpoptOption::Kind::kString;
+        o.text = v.Scalar();
+        accepted = app->Options()->SetStringValue(name, o.text);
+        break;
+    }
+    if (!accepted) {
+      r.Fail(v, element, what + ": Ipopt does not accept " + r.Kind(v) + " (its range or list of values)");
+    }
+    if (name == "hessian_approximation" && o.text != "limited-memory")
+      r.Fail(v, element, "hessian_approximation must be limited-memory: mbdae gives no second derivatives");
+    out->push_back(o);
+  }
+}
+
+}  // namespace
+
+OptimizationProblem LoadOptimizationProblem(const std::string& path) {
+  ProblemReader r(path);
+  OptimizationProblem p;
+  p.file = path;
+  YAML::Node root;
+  {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": the problem file is a directory");
+    try {
+      root = YAML::LoadFile(path);
+    } catch (const YAML::BadFile&) {
+      throw InputError(path + ": cannot open the problem file");
+    } catch (const YAML::Exception& e) {
+      r.Fail(e.mark, "problem", "not valid YAML: " + e.msg);
+    }
+  }
+  const std::string element = "problem";
+  if (!root.IsMap()) r.Fail(root, element, "expected a mapping (format, model, variables, minimize, ...), got " + r.Kind(root));
+  r.CheckKeys(root, element, {"format", "model", "variables", "minimize", "constraints", "simulation", "ipopt", "method"});
+  auto required = [&](const char* key) {
+    const YAML::Node n = root[key];
+    if (!n) r.Fail(root, element, std::string("missing key '") + key + "'");
+    return n;
+  };
+  if (const YAML::Node f = root["format"]) {
+    if (!f.IsScalar() || f.Scalar() != "1") r.Fail(f, element, "format must be 1, got " + r.Kind(f));
+  }
+
+  // The model, relative to the problem file.
+  const YAML::Node model_node = required("model");
+  const std::string model_name = r.Name(model_node, "model", "model");
+  std::filesystem::path model_path(model_name);
+  if (model_path.is_relative()) model_path = std::filesystem::path(path).parent_path() / model_path;
+  p.model_path = model_path.lexically_normal().string();
+  {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(p.model_path, ec))
+      r.Fail(model_node, "model", "the model file '" + p.model_path + "' does not exist" +
+                                       (std::filesystem::exists(p.model_path, ec) ? " as a file" : ""));
+  }
+  p.model = mbs::LoadAnyModel(p.model_path);
+  const mbs::Model& m = p.model;
+  const std::vector<std::string> objectives = ObjectiveNames(m);
+
+  // Variables.
+  const YAML::Node vars = required("variables");
+  if (!vars.IsSequence() || vars.size() == 0)
+    r.Fail(vars, "variables", "expected a non-empty list of {parameter: NAME} or {spline: NAME}, got " + r.Kind(vars));
+  std::set<std::string> seen;
+  for (size_t k = 0; k < vars.size(); ++k) {
+    const YAML::Node v = vars[k];
+    const std::string el = "variables[" + std::to_string(k) + "]";
+    r.CheckKeys(v, el, {"parameter", "spline", "points", "lower", "upper"});
+    double lower = -kInf, upper = kInf;
+    if (v["lower"]) lower = r.Number(v["lower"], el, "lower");
+    if (v["upper"]) upper = r.Number(v["upper"], el, "upper");
+    if (lower > upper) r.Fail(v["lower"], el, "lower bound " + Num(lower) + " is greater than upper bound " + Num(upper));
+    if (lower == upper) r.Fail(v["lower"], el, "lower and upper bound are equal (" + Num(lower) + "): that is not a variable");
+    std::vector<OptimizationVariable> add;
+    if (v["parameter"] && v["spline"]) r.Fail(v, el, "give either parameter or spline, not both");
+    if (const YAML::Node n = v["parameter"]) {
+      if (v["points"]) r.Fail(v["points"], el, "points are for splines");
+      const std::string name = r.Name(n, el, "parameter");
+      int index = -1;
+      std::vector<std::string> known;
+      for (size_t i = 0; i < m.parameters.size(); ++i) {
+        known.push_back(m.parameters[i].name);
+        if (m.parameters[i].name == name) index = static_cast<int>(i);
+      }
+      if (index < 0)
+        r.Fail(n, el, "unknown parameter '" + name + "' of model " + p.model_path +
+                          (known.empty() ? std::string(" (it has no parameters)") : "; its parameters: " + Join(known)));
+      OptimizationVariable ov;
+      ov.name = name;
+      ov.parameter = index;
+      ov.start = m.parameters[index].value;
+      add.push_back(ov);
+    } else if (const YAML::Node n = v["spline"]) {
+      const std::string name = r.Name(n, el, "spline");
+      int index = -1;
+      std::vector<std::string> known;
+      for (size_t i = 0; i < m.splines.size(); ++i) {
+        known.push_back(m.splines[i].name);
+        if (m.splines[i].name == name) index = static_cast<int>(i);
+      }
+      if (index < 0)
+        r.Fail(n, el, "unknown spline '" + name + "' of model " + p.model_path +
+                          (known.empty() ? std::string(" (it has no splines)") : "; its splines: " + Join(known)));
+      const mbs::SplineDef& s = m.splines[index];
+      if (s.depends_on_parameters())
+        r.Fail(n, el, "the points of spline '" + name + "' depend on parameters: its ordinates cannot be variables");
+      const int count = static_cast<int>(s.spline.y().size());
+      std::vector<int> points;
+      if (const YAML::Node pts = v["points"]) {
+        if (!pts.IsSequence() || pts.size() == 0) r.Fail(pts, el, "points must be a non-empty list of point indices, got " + r.Kind(pts));
+        for (const YAML::Node& q : pts) {
+          long long i = -1;
+          if (!q.IsScalar() || !YAML::convert<long long>::decode(q, i) || i < 0 || i >= count)
+            r.Fail(q, el, "point " + r.Kind(q) + " is not an index of spline '" + name + "' (0 to " +
+                              std::to_string(count - 1) + ")");
+          points.push_back(static_cast<int>(i));
+        }
+      } else {
+        for (int i = 0; i < count; ++i) points.push_back(i);
+      }
+      for (int i : points) {
+        OptimizationVariable ov;
+        ov.name = name + "[" + std::to_string(i) + "]";
+        ov.spline = index;
+        ov.point = i;
+        ov.start = s.spline.y()[i];
+        add.push_back(ov);
+      }
+    } else {
+      r.Fail(v, el, "expected {parameter: NAME} or {spline: NAME}");
+    }
+    for (auto& ov : add) {
+      if (!seen.insert(ov.name).second) r.Fail(v, el, "variable '" + ov.name + "' is listed twice");
+      ov.lower = lower;
+      ov.upper = upper;
+      p.variables.push_back(ov);
+    }
+  }
+
+  // Objective and constraints.
+  auto objective = [&](const YAML::Node& n, const std::string& el, const std::string& key) {
+    const std::string name = r.Name(n, el, key);
+    if (std::find(objectives.begin(), objectives.end(), name) == objectives.end())
+      r.Fail(n, el, "unknown objective '" + name + "' of model " + p.model_path +
+                        (objectives.empty() ? std::string(" (it has no `objectives:`)") : "; its objectives: " + Join(objectives)));
+    return name;
+  };
+  p.objective = objective(required("minimize"), "minimize", "minimize");
+  if (const YAML::Node cs = root["constraints"]) {
+    if (!cs.IsSequence()) r.Fail(cs, "constraints", "expected a list of {objective: NAME, equals: V | lower: L, upper: U}, got " + r.Kind(cs));
+    for (size_t k = 0; k < cs.size(); ++k) {
+      const YAML::Node c = cs[k];
+      const std::string el = "constraints[" + std::to_string(k) + "]";
+      r.CheckKeys(c, el, {"objective", "equals", "lower", "upper"});
+      if (!c["objective"]) r.Fail(c, el, "missing key 'objective'");
+      OptimizationConstraint oc;
+      oc.objective = objective(c["objective"], el, "objective");
+      if (const YAML::Node e = c["equals"]) {
+        if (c["lower"] || c["upper"]) r.Fail(e, el, "give either equals or lower/upper, not both");
+        oc.lower = oc.upper = r.Number(e, el, "equals");
+        if (!std::isfinite(oc.lower)) r.Fail(e, el, "equals must be finite");
+      } else {
+        if (!c["lower"] && !c["upper"]) r.Fail(c, el, "give equals, or lower and/or upper");
+        if (c["lower"]) oc.lower = r.Number(c["lower"], el, "lower");
+        if (c["upper"]) oc.upper = r.Number(c["upper"], el, "upper");
+        if (oc.lower > oc.upper)
+          r.Fail(c["lower"], el, "lower bound " + Num(oc.lower) + " is greater than upper bound " + Num(oc.upper));
+      }
+      p.constraints.push_back(oc);
+    }
+  }
+
+  SettingsOverrides overrides;
+  if (const YAML::Node s = root["simulation"]) {
+    ReadSimulation(r, s, &overrides);
+    try {
+      p.settings = ResolveSettings(m.simulation, overrides);
+    } catch (const InputError& e) {
+      r.Fail(s, "simulation", e.what());
+    }
+  } else {
+    p.settings = ResolveSettings(m.simulation, overrides);
+  }
+  if (const YAML::Node n = root["method"]) {
+    const std::string v = r.Name(n, "method", "method");
+    if (!ParseGradientMethod(v, &p.method)) r.Fail(n, "method", "expected adjoint, forward or fd, got '" + v + "'");
+  }
+  if (const YAML::Node n = root["ipopt"]) ReadIpoptOptions(r, n, &p.ipopt);
+  return p;
+}
+
+namespace {
+
+// ---- the NLP ----------------------------------------------------------------------
+
+// Evaluations of one point: values of every needed objective and their gradients.
+struct Evaluation {
+  std::vector<double> x;
+  bool ok = false;
+  double f = 0;
+  std::vector<double> grad_f;  // n
+  std::vector<double> g;       // m
+  std::vector<double> jac;     // m x n, row-major
+};
+
+class ShootingNlp : public Ipopt::TNLP {
+ public:
+  ShootingNlp(const OptimizationProblem& p, const OptimizeOptions& o, OptimizationResult* r)
+      : p_(p), o_(o), r_(r) {
+    for (const auto& v : p.variables) wrt_.push_back(v.name);
+    objectives_.push_back(p.objective);
+    for (const auto& c : p.constraints)
+      if (std::find(objectives_.begin(), objectives_.end(), c.objective) == objectives_.end())
+        objectives_.push_back(c.objective);
+    for (const auto& v : p.variables) has_parameters_ = has_parameters_ || v.parameter >= 0;
+    final_x_.reserve(p.variables.size());
+    for (const auto& v : p.variables) final_x_.push_back(v.start);
+  }
+
+  // The model with the variables at x (parameter variables by a reload, then the
+  // ordinates); `extra` are further parameter overrides (fd's perturbations).
+  mbs::Model ModelAt(const std::vector<double>& x, const std::map<std::string, double>& extra = {}) const {
+    mbs::Model m;
+    if (has_parameters_ || !extra.empty()) {
+      mbs::LoadOptions lo;
+      for (size_t k = 0; k < x.size(); ++k)
+        if (p_.variables[k].parameter >= 0) lo.parameter_overrides[p_.variables[k].name] = x[k];
+      for (const auto& [name, value] : extra) lo.parameter_overrides[name] = value;
+      m = mbs::LoadAnyModel(p_.model_path, lo);
+    } else {
+      m = p_.model;
+    }
+    std::map<int, std::vector<double>> ordinates;
+    for (size_t k = 0; k < x.size(); ++k) {
+      const OptimizationVariable& v = p_.variables[k];
+      if (v.spline < 0) continue;
+      auto it = ordinates.find(v.spline);
+      if (it == ordinates.end()) it = ordinates.emplace(v.spline, m.splines[v.spline].spline.y()).first;
+      it->second[v.point] = x[k];
+    }
+    for (auto& [s, y] : ordinates) {
+      mbs::Spline& spline = m.splines[s].spline;
+      spline.SetPoints(spline.x(), y);
+    }
+    return m;
+  }
+
+  // The evaluation at x (cached). Throws InputError only from the first evaluation (the
+  // problem's variables checked by ComputeGradient); later failures give ok = false.
+  const Evaluation& Evaluate(const std::vector<double>& x, bool first = false) {
+    if (cache_.x == x && !cache_.x.empty()) return cache_;
+    const size_t n = x.size(), m = p_.constraints.size();
+    cache_ = Evaluation{};
+    cache_.x = x;
+    GradientRequest request;
+    request.objectives = objectives_;
+    request.wrt = wrt_;
+    request.method = p_.method;
+    GradientOptions go;
+    go.model_path = p_.model_path;
+    go.reload = [this, &x](const std::map<std::string, double>& overrides) { return ModelAt(x, overrides); };
+    ++r_->gradient_evaluations;
+    const double cpu = CpuSeconds();
+    try {
+      const mbs::Model model = ModelAt(x);
+      const GradientResult g = ComputeGradient(model, p_.settings, request, go);
+      r_->gradient_cpu_time += CpuSeconds() - cpu;
+      r_->runs += g.runs;
+      if (g.status != GradientResult::Status::kDone) {
+        last_failure_ = g.failure_reason;
+        ++r_->failed_evaluations;
+        return cache_;
+      }
+      auto index = [&g](const std::string& name) {
+        return static_cast<int>(std::find(g.objectives.begin(), g.objectives.end(), name) - g.objectives.begin());
+      };
+      const int io = index(p_.objective);
+      cache_.f = g.values[io];
+      cache_.grad_f.resize(n);
+      for (size_t k = 0; k < n; ++k) cache_.grad_f[k] = g.Gradient(io, static_cast<int>(k));
+      cache_.g.resize(m);
+      cache_.jac.resize(m * n);
+      for (size_t i = 0; i < m; ++i) {
+        const int ic = index(p_.constraints[i].objective);
+        cache_.g[i] = g.values[ic];
+        for (size_t k = 0; k < n; ++k) cache_.jac[i * n + k] = g.Gradient(ic, static_cast<int>(k));
+      }
+      bool finite = std::isfinite(cache_.f);
+      for (double v : cache_.grad_f) finite = finite && std::isfinite(v);
+      for (double v : cache_.g) finite = finite && std::isfinite(v);
+      for (double v : cache_.jac) finite = finite && std::isfinite(v);
+      cache_.ok = finite;
+      if (!finite) {
+        last_failure_ = "a value or gradient is not finite";
+        ++r_->failed_evaluations;
+      }
+    } catch (const InputError&) {
+      r_->gradient_cpu_time += CpuSeconds() - cpu;
+      if (first) throw;
+      last_failure_ = "bad input";
+      ++r_->failed_evaluations;
+    } catch (const std::exception& e) {
+      r_->gradient_cpu_time += CpuSeconds() - cpu;
+      if (first) throw;
+      last_failure_ = e.what();
+      ++r_->failed_evaluations;
+    }
+    return cache_;
+  }
+
+  const std::string& last_failure() const { return last_failure_; }
+  const std::vector<double>& final_x() const { return final_x_; }
+
+  bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac_g, Ipopt::Index& nnz_h_lag,
+                    IndexStyleEnum& index_style) override {
+    n = static_cast<Ipopt::Index>(p_.variables.size());
+    m = static_cast<Ipopt::Index>(p_.constraints.size());
+    nnz_jac_g = n * m;
+    nnz_h_lag = 0;
+    index_style = C_STYLE;
+    return true;
+  }
+
+  bool get_bounds_info(Ipopt::Index n, Ipopt::Number* x_l, Ipopt::Number* x_u, Ipopt::Index m, Ipopt::Number* g_l,
+                       Ipopt::Number* g_u) override {
+    // Ipopt's infinity: beyond +-1e19 (nlp_lower/upper_bound_inf); 2e19 stays beyond it.
+    auto clip = [](double v) { return std::isfinite(v) ? v : (v > 0 ? 2e19 : -2e19); };
+    for (Ipopt::Index k = 0; k < n; ++k) {
+      x_l[k] = clip(p_.variables[k].lower);
+      x_u[k] = clip(p_.variables[k].upper);
+    }
+    for (Ipopt::Index i = 0; i < m; ++i) {
+      g_l[i] = clip(p_.constraints[i].lower);
+      g_u[i] = clip(p_.constraints[i].upper);
+    }
+    return true;
+  }
+
+  bool get_starting_point(Ipopt::Index n, bool init_x, Ipopt::Number* x, bool init_z, Ipopt::Number*, Ipopt::Number*,
+                          Ipopt::Index, bool init_lambda, Ipopt::Number*) override {
+    if (!init_x || init_z || init_lambda) return false;
+    for (Ipopt::Index k = 0; k < n; ++k) x[k] = p_.variables[k].start;
+    return true;
+  }
+
+  bool eval_f(Ipopt::Index n, const Ipopt::Number* x, bool, Ipopt::Number& obj_value) override {
+    const Evaluation& e = Evaluate(std::vector<double>(x, x + n));
+    if (!e.ok) return false;
+    obj_value = e.f;
+    return true;
+  }
+
+  bool eval_grad_f(Ipopt::Index n, const Ipopt::Number* x, bool, Ipopt::Number* grad_f) override {
+    const Evaluation& e = Evaluate(std::vector<double>(x, x + n));
+    if (!e.ok) return false;
+    std::copy(e.grad_f.begin(), e.grad_f.end(), grad_f);
+    return true;
+  }
+
+  bool eval_g(Ipopt::Index n, const Ipopt::Number* x, bool, Ipopt::Index m, Ipopt::Number* g) override {
+    if (m == 0) return true;
+    const Evaluation& e = Evaluate(std::vector<double>(x, x + n));
+    if (!e.ok) return false;
+    std::copy(e.g.begin(), e.g.end(), g);
+    return true;
+  }
+
+  bool eval_jac_g(Ipopt::Index n, const Ipopt::Number* x, bool, Ipopt::Index m, Ipopt::Index, Ipopt::Index* iRow,
+                  Ipopt::Index* jCol, Ipopt::Number* values) override {
+    if (values == nullptr) {  // the dense structure, row by row
+      for (Ipopt::Index i = 0; i < m; ++i)
+        for (Ipopt::Index k = 0; k < n; ++k) {
+          iRow[i * n + k] = i;
+          jCol[i * n + k] = k;
+        }
+      return true;
+    }
+    if (m == 0) return true;
+    const Evaluation& e = Evaluate(std::vector<double>(x, x + n));
+    if (!e.ok) return false;
+    std::copy(e.jac.begin(), e.jac.end(), values);
+    return true;
+  }
+
+  bool intermediate_callback(Ipopt::AlgorithmMode, Ipopt::Index iter, Ipopt::Number obj_value, Ipopt::Number inf_pr,
+                             Ipopt::Number inf_du, Ipopt::Number mu, Ipopt::Number, Ipopt::Number, Ipopt::Number,
+                             Ipopt::Number alpha_pr, Ipopt::Index ls_trials, const Ipopt::IpoptData*,
+                             Ipopt::IpoptCalculatedQuantities*) override {
+    OptimizationIteration it;
+    it.iteration = iter;
+    it.objective = obj_value;
+    it.constraint_violation = inf_pr;
+    it.dual_infeasibility = inf_du;
+    it.mu = mu;
+    it.step = alpha_pr;
+    it.line_search_trials = ls_trials;
+    it.gradient_evaluations = r_->gradient_evaluations;
+    r_->history.push_back(it);
+    if (o_.iteration) o_.iteration(it);
+    return true;
+  }
+
+  void finalize_solution(Ipopt::SolverReturn, Ipopt::Index n, const Ipopt::Number* x, const Ipopt::Number*,
+                         const Ipopt::Number*, Ipopt::Index, const Ipopt::Number*, const Ipopt::Number*, Ipopt::Number,
+                         const Ipopt::IpoptData*, Ipopt::IpoptCalculatedQuantities*) override {
+    if (x) final_x_.assign(x, x + n);
+  }
+
+ private:
+  const OptimizationProblem& p_;
+  const OptimizeOptions& o_;
+  OptimizationResult* r_;
+  std::vector<std::string> wrt_, objectives_;
+  bool has_parameters_ = false;
+  Evaluation cache_;
+  std::string last_failure_;
+  std::vector<double> final_x_;
+};
+
+const char* StatusName(Ipopt::ApplicationReturnStatus s) {
+  switch (s) {
+    case Ipopt::Solve_Succeeded: return "Solve_Succeeded";
+    case Ipopt::Solved_To_Acceptable_Level: return "Solved_To_Acceptable_Level";
+    case Ipopt::Infeasible_Problem_Detected: return "Infeasible_Problem_Detected";
+    case Ipopt::Search_Direction_Becomes_Too_Small: return "Search_Direction_Becomes_Too_Small";
+    case Ipopt::Diverging_Iterates: return "Diverging_Iterates";
+    case Ipopt::User_Requested_Stop: return "User_Requested_Stop";
+    case Ipopt::Feasible_Point_Found: return "Feasible_Point_Found";
+    case Ipopt::Maximum_Iterations_Exceeded: return "Maximum_Iterations_Exceeded";
+    case Ipopt::Restoration_Failed: return "Restoration_Failed";
+    case Ipopt::Error_In_Step_Computation: return "Error_In_Step_Computation";
+    case Ipopt::Maximum_CpuTime_Exceeded: return "Maximum_CpuTime_Exceeded";
+    case Ipopt::Not_Enough_Degrees_Of_Freedom: return "Not_Enough_Degrees_Of_Freedom";
+    case Ipopt::Invalid_Problem_Definition: return "Invalid_Problem_Definition";
+    case Ipopt::Invalid_Option: return "Invalid_Option";
+    case Ipopt::Invalid_Number_Detected: return "Invalid_Number_Detected";
+    case Ipopt::Unrecoverable_Exception: return "Unrecoverable_Exception";
+    case Ipopt::NonIpopt_Exception_Thrown: return "NonIpopt_Exception_Thrown";
+    case Ipopt::Insufficient_Memory: return "Insufficient_Memory";
+    case Ipopt::Internal_Error: return "Internal_Error";
+  }
+  return "Unknown";
+}
+
+// Adds the optimisation to the results file of the final run.
+void WriteOptimization(const std::string& path, const OptimizationResult& r) {
+  io::ResultsGroup g;
+  g.path = "optimization";
+  g.numbers = {{"objective", r.objective},
+               {"constraint_violation", r.constraint_violation},
+               {"iterations", static_cast<double>(r.iterations)},
+               {"gradient_evaluations", static_cast<double>(r.gradient_evaluations)}};
+  g.strings = {{"objective_name", {r.objective_name}},
+               {"constraint_names", r.constraint_names},
+               {"ipopt_status", {r.ipopt_status}}};
+  g.datasets = {{"variables", r.variables}, {"lower", r.lower}, {"upper", r.upper},
+                {"constraint_values", r.constraint_values}};
+  io::AddToResultsFile(path, {g}, {{"optimization_status", r.status}});
+  io::AddStringsToResultsFile(path, "optimization/variable_names", r.variable_names);
+  std::vector<double> rows;
+  for (const auto& it : r.history) {
+    rows.push_back(it.iteration);
+    rows.push_back(it.objective);
+    rows.push_back(it.constraint_violation);
+    rows.push_back(it.dual_infeasibility);
+    rows.push_back(static_cast<double>(it.gradient_evaluations));
+  }
+  io::AddTableToResultsFile(path, "optimization/history", 5, rows,
+                            {"iteration", "objective", "constraint_violation", "dual_infeasibility",
+                             "gradient_evaluations"});
+}
+
+}  // namespace
+
+OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOptions& options) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const double cpu_start = CpuSeconds();
+  OptimizationResult r;
+  r.objective_name = problem.objective;
+  for (const auto& v : problem.variables) {
+    r.variable_names.push_back(v.name);
+    r.lower.push_back(v.lower);
+    r.upper.push_back(v.upper);
+  }
+  for (const auto& c : problem.constraints) r.constraint_names.push_back(c.objective);
+
+  Ipopt::SmartPtr<ShootingNlp> nlp = new ShootingNlp(problem, options, &r);
+  // The starting point first: what ComputeGradient refuses (a variable the exact methods
+  // cannot differentiate) is bad input, before anything is written.
+  std::vector<double> x0;
+  for (const auto& v : problem.variables) x0.push_back(std::clamp(v.start, v.lower, v.upper));
+  nlp->Evaluate(x0, /*first=*/true);
+
+  // Ipopt without its console output (mbdae prints its own lines; stdout may be JSON).
+  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = new Ipopt::IpoptApplication(false);
+  app->Options()->SetStringValue("hessian_approximation", "limited-memory");
+  app->Options()->SetIntegerValue("print_level", 0);
+  app->Options()->SetStringValue("sb", "yes");
+  for (const IpoptOption& o : problem.ipopt) {
+    // Ipopt's own log, when asked for, on stderr (print_level sets the "console" journal).
+    if (o.name == "print_level" && !Ipopt::IsValid(app->Jnlst()->GetJournal("console")))
+      app->Jnlst()->AddFileJournal("console", "stderr", Ipopt::J_ITERSUMMARY);
+    switch (o.kind) {
+      case IpoptOption::Kind::kNumber: app->Options()->SetNumericValue(o.name, o.number); break;
+      case IpoptOption::Kind::kInteger: app->Options()->SetIntegerValue(o.name, o.integer); break;
+      case IpoptOption::Kind::kString: app->Options()->SetStringValue(o.name, o.text); break;
+    }
+  }
+  Ipopt::ApplicationReturnStatus status = app->Initialize();
+  if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(Ipopt::SmartPtr<Ipopt::TNLP>(GetRawPtr(nlp)));
+  r.ipopt_status = StatusName(status);
+  r.solved = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level;
+  r.status = r.solved ? "solved" : "failed";
+  if (Ipopt::IsValid(app->Statistics())) r.iterations = app->Statistics()->IterationCount();
+  else if (!r.history.empty()) r.iterations = r.history.back().iteration;
+  r.variables = nlp->final_x();
+
+  // The final run: the model at the final point, into the results file.
+  try {
+    const mbs::Model model = nlp->ModelAt(r.variables);
+    Assembly asmb = Assemble(model);
+    SimulationOptions so;
+    so.model_path = problem.model_path;
+    so.results_path = options.results_path;
+    r.final_run = Simulate(model, asmb, problem.settings, so);
+    ++r.runs;
+    if (r.final_run.status == SimulationSummary::Status::kDone) {
+      std::map<std::string, double> values;
+      for (const auto& o : r.final_run.objectives) values[o.name] = o.value;
+      if (values.count(problem.objective)) r.objective = values[problem.objective];
+      r.constraint_violation = 0;
+      for (const auto& c : problem.constraints) {
+        const double v = values.count(c.objective) ? values[c.objective] : std::numeric_limits<double>::quiet_NaN();
+        r.constraint_values.push_back(v);
+        const double d = std::max({c.lower - v, v - c.upper, 0.0});
+        r.constraint_violation = std::isnan(v) ? v : std::max(r.constraint_violation, d);
+      }
+    } else {
+      r.failure_reason = "the final run failed at t = " + Num(r.final_run.t_reached) + ": " + r.final_run.failure_reason;
+    }
+  } catch (const std::exception& e) {
+    r.failure_reason = std::string("the final run failed: ") + e.what();
+  }
+  if (!r.failure_reason.empty()) {
+    r.solved = false;
+    r.status = "failed";
+  }
+  r.cpu_time = CpuSeconds() - cpu_start;
+  r.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (!options.results_path.empty() && !r.final_run.results_path.empty()) WriteOptimization(options.results_path, r);
+  return r;
+}
+
+std::string OptimizationResult::Report() const {
+  std::ostringstream s;
+  s << "status: " << status << " (Ipopt: " << ipopt_status << ")\n";
+  if (!failure_reason.empty()) s << failure_reason << "\n";
+  s << "objective " << objective_name << " = " << Num(objective) << "\n";
+  if (!constraint_names.empty()) {
+    s << "constraints (max violation " << Num(constraint_violation) << "):\n";
+    for (size_t i = 0; i < constraint_names.size(); ++i)
+      s << "  " << constraint_names[i] << " = " << Num(i < constraint_values.size() ? constraint_values[i] : NAN) << "\n";
+  }
+  s << "variables:\n";
+  for (size_t k = 0; k < variable_names.size(); ++k) s << "  " << variable_names[k] << " = " << Num(variables[k]) << "\n";
+  s << "iterations: " << iterations << ", gradient evaluations: " << gradient_evaluations;
+  if (failed_evaluations) s << " (" << failed_evaluations << " failed)";
+  s << ", runs: " << runs << "\n";
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "CPU time %.3g s (gradient evaluations %.3g s, %.0f %%), wall time %.3g s\n", cpu_time,
+                gradient_cpu_time, cpu_time > 0 ? 100 * gradient_cpu_time / cpu_time : 0.0, wall_time);
+  s << buf;
+  if (!final_run.results_path.empty()) s << "results: " << final_run.results_path << "\n";
+  return s.str();
+}
+
+std::string OptimizationResult::Json() const {
+  std::ostringstream s;
+  s << "{\"status\": " << JsonString(status) << ", \"objective\": " << JsonNumber(objective)
+    << ", \"iterations\": " << iterations << ", \"variables\": {";
+  for (size_t k = 0; k < variable_names.size(); ++k)
+    s << (k ? ", " : "") << JsonString(variable_names[k]) << ": " << JsonNumber(variables[k]);
+  s << "}, \"constraint_violation\": " << JsonNumber(constraint_violation)
+    << ", \"ipopt_status\": " << JsonString(ipopt_status) << ", \"objective_name\": " << JsonString(objective_name)
+    << ", \"constraints\": {";
+  for (size_t i = 0; i < constraint_names.size(); ++i)
+    s << (i ? ", " : "") << JsonString(constraint_names[i]) << ": "
+      << JsonNumber(i < constraint_values.size() ? constraint_values[i] : NAN);
+  s << "}";
+  if (!failure_reason.empty()) s << ", \"failure_reason\": " << JsonString(failure_reason);
+  s << ", \"gradient_evaluations\": " << gradient_evaluations << ", \"failed_evaluations\": " << failed_evaluations
+    << ", \"runs\": " << runs << ", \"gradient_cpu_time\": " << JsonNumber(gradient_cpu_time)
+    << ", \"cpu_time\": " << JsonNumber(cpu_time) << ", \"wall_time\": " << JsonNumber(wall_time) << "}";
+  return s.str();
+}
+
+}  // namespace mbdae::driver

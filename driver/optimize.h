@@ -1,0 +1,157 @@
+// Optimal control and identification behind `mbdae optimize` (shared/spec/
+// sensitivities.md, "Optimal control and identification"): single shooting over model
+// parameters and spline ordinates with bounds, the objective and the constraints being
+// objectives of the model, solved by Ipopt with exact first derivatives from
+// ComputeGradient (driver/gradient.h) and a limited-memory Hessian.
+//
+//   OptimizationProblem p = LoadOptimizationProblem("rotor_problem.yaml");  // throws InputError
+//   OptimizeOptions o;  o.results_path = "rotor_problem.h5";
+//   OptimizationResult r = Optimize(p, o);
+//   r.solved, r.objective, r.variables, r.history ...
+//
+// The problem file (YAML; every key but `model`, `variables` and `minimize` optional):
+//
+//   format: 1
+//   model: rotor.yaml                 # relative to the problem file
+//   variables:                        # each with optional bounds (default unbounded)
+//     - {parameter: J, lower: 0.1, upper: 2}
+//     - {spline: tau, lower: -40, upper: 40}            # every ordinate of the spline
+//     - {spline: u, points: [1, 2], lower: -1, upper: 1}  # ordinates u[1], u[2]
+//   minimize: energy                  # an objective of the model
+//   constraints:                      # objectives of the model with bounds
+//     - {objective: final_angle, equals: 1.0}
+//     - {objective: final_speed, lower: -1.0e-6, upper: 1.0e-6}
+//   simulation: {hht: {step: 1.0e-3}} # overrides of the model's `simulation:` block
+//   ipopt: {tol: 1.0e-10, max_iter: 200}  # Ipopt options, typed by Ipopt's registry
+//   method: adjoint                   # adjoint (default) | forward | fd
+//
+// Every mistake (unknown keys, variable or objective names, lower > upper, a missing
+// model file, a bad Ipopt option) is an InputError "FILE:LINE:COLUMN: ELEMENT: what is
+// wrong" naming the problem file, thrown before anything runs; mistakes inside the model
+// file are mbs::ModelError naming the model file.
+//
+// Optimize evaluates f, grad f, g and the (dense) Jacobian of g at a point x with one
+// ComputeGradient call of every objective needed (minimize first, then the constraints'
+// objectives), cached for as long as Ipopt asks about the same x. The model for x is the
+// model file reloaded with the parameter variables as overrides (when there are any),
+// with the spline ordinates set by Spline::SetPoints. A failed run (or gradient) at a
+// trial point makes eval_* return false: Ipopt then cuts the step. The variables start
+// at the model's values (warm start). At the end the model with the final variables is
+// simulated into the results file, and the optimisation is added to it (docs/
+// sensitivities.md, "Optimal control: mbdae optimize").
+#pragma once
+
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "driver/gradient.h"
+#include "driver/simulation.h"
+#include "mbs/model.h"
+
+namespace mbdae::driver {
+
+struct OptimizationVariable {
+  std::string name;  // "J" (a parameter) or "tau[3]" (an ordinate): the gradient's wrt names
+  int parameter = -1;           // Model::parameters index, or -1
+  int spline = -1, point = -1;  // Model::splines index and 0-based point of an ordinate
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  double start = 0;  // the model's value
+};
+
+struct OptimizationConstraint {
+  std::string objective;  // an objective of the model
+  double lower = -std::numeric_limits<double>::infinity();  // `equals`: lower == upper
+  double upper = std::numeric_limits<double>::infinity();
+};
+
+// An Ipopt option of the problem file, with the type Ipopt registers for it.
+struct IpoptOption {
+  enum class Kind { kNumber, kInteger, kString };
+  std::string name;
+  Kind kind = Kind::kNumber;
+  double number = 0;
+  int integer = 0;
+  std::string text;
+};
+
+struct OptimizationProblem {
+  std::string file;        // the problem file as given
+  std::string model_path;  // the model file, resolved against the problem file's folder
+  mbs::Model model;        // as loaded (the starting values)
+  mbs::SimulationSettings settings;  // the model's, with the problem's overrides, validated
+  std::vector<OptimizationVariable> variables;
+  std::string objective;
+  std::vector<OptimizationConstraint> constraints;
+  GradientMethod method = GradientMethod::kAdjoint;
+  // Applied after mbdae's defaults (hessian_approximation limited-memory, print_level 0):
+  // any registered Ipopt option but hessian_approximation exact (mbdae gives no second
+  // derivatives).
+  std::vector<IpoptOption> ipopt;
+};
+
+// Throws InputError (problem file mistakes, with FILE:LINE:COLUMN) or mbs::ModelError
+// (model file mistakes).
+OptimizationProblem LoadOptimizationProblem(const std::string& path);
+
+// One Ipopt iteration (intermediate_callback): iteration 0 is the starting point.
+struct OptimizationIteration {
+  int iteration = 0;
+  double objective = 0;
+  // Ipopt's inf_pr: the max-norm of the constraint violation of the iterate (of Ipopt's
+  // internal problem, in which inequality constraints have slacks).
+  double constraint_violation = 0;
+  double dual_infeasibility = 0;  // Ipopt's inf_du
+  double mu = 0;                  // barrier parameter
+  double step = 0;                // Ipopt's alpha_pr
+  int line_search_trials = 0;
+  long gradient_evaluations = 0;  // ComputeGradient calls so far
+};
+
+struct OptimizeOptions {
+  std::string results_path;  // the final run plus /optimization; "": no file
+  // Called after every iteration (the program prints a progress line).
+  std::function<void(const OptimizationIteration&)> iteration;
+};
+
+struct OptimizationResult {
+  bool solved = false;       // Ipopt: Solve_Succeeded or Solved_To_Acceptable_Level
+  std::string status;        // "solved" | "failed"
+  std::string ipopt_status;  // Ipopt's ApplicationReturnStatus, e.g. "Solve_Succeeded"
+  std::vector<std::string> variable_names;
+  std::vector<double> variables;  // the final point (Ipopt's last iterate when not solved)
+  std::vector<double> lower, upper;
+  std::string objective_name;
+  double objective = std::numeric_limits<double>::quiet_NaN();  // of the final run
+  std::vector<std::string> constraint_names;  // objective names of the constraints
+  std::vector<double> constraint_values;      // of the final run
+  // max over the constraints of the distance of the final run's value to [lower, upper].
+  double constraint_violation = std::numeric_limits<double>::quiet_NaN();
+  int iterations = 0;
+  std::vector<OptimizationIteration> history;
+  long gradient_evaluations = 0;  // ComputeGradient calls (each: a run and its gradient)
+  long failed_evaluations = 0;    // of those, failed runs (Ipopt cut its step)
+  long runs = 0;                  // whole simulation runs, the final run included
+  double gradient_cpu_time = 0;   // CPU seconds inside ComputeGradient (runs + gradients)
+  double cpu_time = 0;            // CPU seconds of Optimize
+  double wall_time = 0;           // seconds of Optimize
+  SimulationSummary final_run;    // of the final point (the results file's run)
+  std::string failure_reason;     // the final run's, when it failed
+
+  // The optimum, the constraints, iterations, status and the cost.
+  std::string Report() const;
+  // {"status": "solved", "objective": ..., "iterations": ..., "variables": {...},
+  //  "constraint_violation": ..., "ipopt_status": ..., "constraints": {...},
+  //  "gradient_evaluations": ..., "failed_evaluations": ..., "runs": ...,
+  //  "gradient_cpu_time": ..., "cpu_time": ..., "wall_time": ...}; non-finite as null.
+  std::string Json() const;
+};
+
+// Throws InputError for what the problem file cannot show before a run (a variable the
+// exact methods cannot differentiate, named by ComputeGradient); everything after the
+// first run is reported in the result.
+OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOptions& options);
+
+}  // namespace mbdae::driver

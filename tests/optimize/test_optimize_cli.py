@@ -1,0 +1,154 @@
+"""`mbdae optimize` (shared/spec/sensitivities.md, "Optimal control and identification"):
+the known optimum of a rest-to-rest rotor turn, a parameter identified exactly, bad
+problem files (exit 2 naming file and line, nothing written), non-convergence (exit 3,
+the final point and the history still written).
+
+Run by CTest (optimize.cli) with MBDAE_BIN and MBDAE_OPTIMIZE_DIR set.
+"""
+import json
+import os
+import shutil
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+MBDAE = os.environ.get("MBDAE_BIN", "build/mbdae")
+HERE = os.environ.get("MBDAE_OPTIMIZE_DIR", "tests/optimize")
+J, THETA_F, T = 0.5, 1.0, 1.0  # rotor.yaml, rotor_problem.yaml
+OPTIMUM = 12 * J**2 * THETA_F**2 / T**3
+
+
+def optimize(problem, *args, expect=0):
+    p = subprocess.run([MBDAE, "optimize", str(problem), *args], capture_output=True, text=True)
+    assert p.returncode == expect, f"exit {p.returncode}\nstdout: {p.stdout}\nstderr: {p.stderr}"
+    return p
+
+
+def copy_problem(tmp_path, text=None):
+    """rotor.yaml and a problem file (rotor_problem.yaml or `text`) in tmp_path."""
+    shutil.copy(os.path.join(HERE, "rotor.yaml"), tmp_path / "rotor.yaml")
+    problem = tmp_path / "problem.yaml"
+    problem.write_text(text if text is not None else open(os.path.join(HERE, "rotor_problem.yaml")).read())
+    return problem
+
+
+@pytest.mark.parametrize("method", ["adjoint", "forward"])
+def test_rotor_reaches_the_known_optimum(tmp_path, method):
+    problem = copy_problem(tmp_path)
+    if method != "adjoint":
+        problem.write_text(problem.read_text() + f"method: {method}\n")
+    out = tmp_path / "rotor.h5"
+    p = optimize(problem, "--json", "-o", str(out))
+    d = json.loads(p.stdout)
+    assert d["status"] == "solved" and d["ipopt_status"] == "Solve_Succeeded"
+    # minimum of integral tau^2 = 12 J^2 theta_f^2 / T^3 (measured: 4.5e-6 relative with
+    # the HHT step 1e-3, the trapezoidal quadrature's and the scheme's O(h^2))
+    assert abs(d["objective"] - OPTIMUM) / OPTIMUM < 1e-4
+    assert d["constraint_violation"] < 1e-9
+    assert d["constraints"]["final_angle"] == pytest.approx(THETA_F, abs=1e-9)
+    assert abs(d["constraints"]["final_speed"]) < 1e-9
+    # tau linear in t: 6 J theta_f / T^2 (1 - 2 t / T) at the 21 knots (measured max
+    # deviation 1.8e-4, the discrete problem's)
+    t = np.linspace(0, T, 21)
+    tau = np.array([d["variables"][f"tau[{i}]"] for i in range(21)])
+    assert np.max(np.abs(tau - 6 * J * THETA_F / T**2 * (1 - 2 * t / T))) < 1e-3
+    # about one run and gradient per iteration (measured: 16 iterations, 17 evaluations)
+    assert d["iterations"] < 40
+    assert d["gradient_evaluations"] <= 2 * d["iterations"] + 2
+    with h5py.File(out, "r") as f:
+        assert f.attrs["status"] == "done" and f.attrs["optimization_status"] == "solved"
+        g = f["optimization"]
+        names = [n.decode() for n in g["variable_names"][:]]
+        assert names == list(d["variables"])
+        assert np.array_equal(g["variables"][:], tau)
+        h = g["history"][:]
+        cols = list(g["history"].attrs["columns"])
+        assert cols[:3] == ["iteration", "objective", "constraint_violation"]
+        assert h.shape == (d["iterations"] + 1, 5)
+        assert np.array_equal(h[:, 0], np.arange(d["iterations"] + 1))
+        assert h[0, 1] == 0 and h[0, 2] == pytest.approx(THETA_F)  # zero torque: not turned
+        assert h[-1, 1] == pytest.approx(d["objective"], rel=1e-9)
+        assert g.attrs["objective"] == d["objective"]
+        # the final run's rows: the angle rises from 0 to theta_f
+        assert f["time"].shape[0] == 101
+
+
+def test_progress_lines_and_report(tmp_path):
+    problem = copy_problem(tmp_path)
+    p = optimize(problem, "-o", str(tmp_path / "r.h5"))
+    lines = [l for l in p.stderr.splitlines() if l.startswith("mbdae:") and l.split()[1].isdigit()]
+    assert len(lines) >= 5 and lines[0].split()[1] == "0"
+    assert "status: solved" in p.stdout and "objective energy = 3.0000" in p.stdout
+    q = optimize(problem, "--quiet", "-o", str(tmp_path / "q.h5"))
+    assert q.stdout == "" and q.stderr == ""
+
+
+def test_default_results_path_is_the_problem_with_h5(tmp_path):
+    problem = copy_problem(tmp_path)
+    problem.write_text(problem.read_text().replace("max_iter: 100", "max_iter: 3"))
+    optimize(problem, "--quiet", expect=3)
+    assert (tmp_path / "problem.h5").exists()
+
+
+def test_parameter_identified_exactly(tmp_path):
+    # constant torque 1 on the rotor: angle(1) = 1 / (2 J) (HHT exact for constant
+    # acceleration); the J that puts it at 0.25 is 2, from a start at 0.5
+    text = open(os.path.join(HERE, "rotor.yaml")).read()
+    text = text.replace("y: [" + ", ".join(["0"] * 21) + "]", "y: [" + ", ".join(["1"] * 21) + "]")
+    text = text.replace('  - {name: final_speed, terminal: "speed"}',
+                        '  - {name: final_speed, terminal: "speed"}\n  - {name: miss, terminal: "(angle - 0.25)^2"}')
+    (tmp_path / "rotor.yaml").write_text(text)
+    for method in ("adjoint", "fd"):
+        problem = tmp_path / f"id_{method}.yaml"
+        problem.write_text("model: rotor.yaml\nvariables:\n  - {parameter: J, lower: 0.5, upper: 4}\n"
+                           f"minimize: miss\nmethod: {method}\nipopt: {{tol: 1.0e-12}}\n")
+        d = json.loads(optimize(problem, "--json", "--quiet", "-o", str(tmp_path / f"{method}.h5")).stdout)
+        assert d["status"] == "solved"
+        # measured: 5.5e-11 (adjoint), 1.4e-10 (fd)
+        assert d["variables"]["J"] == pytest.approx(2.0, abs=1e-8)
+
+
+GOOD = open(os.path.join(HERE, "rotor_problem.yaml")).read()
+
+
+@pytest.mark.parametrize("change,line,needle", [
+    (("{spline: tau,", "{spline: nope,"), 6, "unknown spline 'nope'"),
+    (("{spline: tau, lower: -40, upper: 40}", "{parameter: Jx, lower: 0, upper: 1}"), 6, "unknown parameter 'Jx'"),
+    (("minimize: energy", "minimize: power"), 7, "unknown objective 'power'"),
+    (("{objective: final_speed,", "{objective: final_sped,"), 10, "unknown objective 'final_sped'"),
+    (("lower: -40, upper: 40", "lower: 40, upper: -40"), 6, "greater than upper bound"),
+    (("model: rotor.yaml", "model: missing.yaml"), 4, "missing.yaml' does not exist"),
+    (("minimize: energy", "minimise: energy"), 7, "unknown key 'minimise'"),
+    (("max_iter: 100", "max_iters: 100"), 11, "unknown Ipopt option 'max_iters'"),
+    (("max_iter: 100", "max_iter: many"), 11, "takes an integer"),
+])
+def test_bad_problem_exits_2_naming_file_and_line(tmp_path, change, line, needle):
+    assert change[0] in GOOD
+    problem = copy_problem(tmp_path, GOOD.replace(*change))
+    out = tmp_path / "bad.h5"
+    p = optimize(problem, "--json", "-o", str(out), expect=2)
+    assert f"{problem}:{line}:" in p.stderr and needle in p.stderr, p.stderr
+    assert p.stdout == "" and not out.exists() and not (tmp_path / "problem.h5").exists()
+
+
+def test_missing_problem_file_exits_2(tmp_path):
+    p = optimize(tmp_path / "none.yaml", expect=2)
+    assert "none.yaml" in p.stderr
+
+
+def test_no_convergence_exits_3_with_history_and_point(tmp_path):
+    problem = copy_problem(tmp_path, GOOD.replace("max_iter: 100", "max_iter: 2"))
+    out = tmp_path / "nc.h5"
+    p = optimize(problem, "--json", "-o", str(out), expect=3)
+    d = json.loads(p.stdout)
+    assert d["status"] == "failed" and d["ipopt_status"] == "Maximum_Iterations_Exceeded"
+    assert d["iterations"] == 2
+    assert "not solved" in p.stderr and str(out) in p.stderr
+    with h5py.File(out, "r") as f:
+        assert f.attrs["optimization_status"] == "failed"
+        g = f["optimization"]
+        assert g["history"].shape == (3, 5)
+        assert np.array_equal(g["variables"][:], [d["variables"][f"tau[{i}]"] for i in range(21)])
+        assert g.attrs["objective"] == pytest.approx(d["objective"], rel=1e-15)
