@@ -2,15 +2,18 @@
 """Make the "measurement" of the identification example: measurement.csv.
 
     /usr/bin/python3 examples/identification/make_measurement.py [--sigma 0.01] [--seed 1]
+        [--k 1] [--c 1]
 
-Simulates model.yaml at its parameter values (the truth, k = 1 N/m and c = 1 N s/m)
-with `build/mbdae simulate` (HHT, h = 1e-3, rows every 0.01 s), reads the slider
-position xs from the results file (h5py), samples it every 0.05 s over [0, 10] s
-(201 samples), adds Gaussian noise of standard deviation --sigma (default 0.01 m, about
-1.6 % of the slider's 0.62 m swing) drawn by numpy's default_rng(--seed) (default seed
-1), and writes measurement.csv next to model.yaml: a header line, comment lines with the
-settings, then t, s_meas (the noisy sample: the spline s_meas of model.yaml reads these
-two columns) and s_true (the noise-free sample, for reference only).
+Simulates model.yaml at the true parameter values (--k, --c: default k = 1 N/m and
+c = 1 N s/m, SUNDIALS' values; model.yaml itself holds the wrong starting guess) with
+`build/mbdae simulate --set k=.. --set c=..` (HHT, h = 1e-3, rows every 0.01 s), reads
+the slider position xs from the results file (h5py), samples it every 0.05 s over
+[0, 10] s (201 samples), adds Gaussian noise of standard deviation --sigma (default
+0.01 m, about 1.6 % of the slider's 0.63 m swing) drawn by numpy's default_rng(--seed)
+(default seed 1), and writes measurement.csv next to model.yaml: a header line, comment
+lines with the settings and the truth, then t, s_meas (the noisy sample: the spline
+s_meas of model.yaml reads these two columns) and s_true (the noise-free sample, for
+reference only).
 
 The model reads measurement.csv itself (the spline), so the simulation runs on a copy of
 model.yaml in a temporary folder with a placeholder data file: the signal xs does not
@@ -55,6 +58,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
     ap.add_argument("--model", default=os.path.join(HERE, "model.yaml"))
+    ap.add_argument("--k", type=float, default=1.0, help="true stiffness, N/m (default 1)")
+    ap.add_argument("--c", type=float, default=1.0, help="true damping, N s/m (default 1)")
     ap.add_argument("--sigma", type=float, default=0.01, help="noise standard deviation, m")
     ap.add_argument("--seed", type=int, default=1, help="seed of numpy's default_rng")
     ap.add_argument("--every", type=int, default=5,
@@ -62,7 +67,8 @@ def main():
     ap.add_argument("--out", default=os.path.join(HERE, "measurement.csv"))
     args = ap.parse_args()
 
-    t, xs, params = simulate_signal(args.mbdae, args.model)
+    t, xs, params = simulate_signal(args.mbdae, args.model,
+                                    ["--set", f"k={args.k!r}", "--set", f"c={args.c!r}"])
     t_s, s_true = t[::args.every], xs[::args.every]
     rng = np.random.default_rng(args.seed)
     s_meas = s_true + args.sigma * rng.standard_normal(t_s.size)
@@ -72,7 +78,9 @@ def main():
         f.write(f"# slider position xs of model.yaml at k = {params['k']!r}, "
                 f"c = {params['c']!r} (build/mbdae simulate, HHT h = 1e-3)\n")
         f.write(f"# sampled every {t_s[1] - t_s[0]:.3g} s, {t_s.size} samples; s_meas = s_true"
-                f" + N(0, {args.sigma!r}^2) noise from numpy default_rng({args.seed})\n")
+                f" + Gaussian noise from numpy default_rng(seed).standard_normal\n")
+        f.write(f"# noise: sigma = {args.sigma!r} m, seed = {args.seed}\n")
+        f.write(f"# truth: k = {params['k']!r}, c = {params['c']!r}\n")
         for ti, mi, si in zip(t_s, s_meas, s_true):
             f.write(f"{ti:.10g},{mi:.17g},{si:.17g}\n")
     noise = s_meas - s_true
