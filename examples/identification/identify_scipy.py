@@ -12,7 +12,7 @@ starts there and minimises the misfit over (k, c) with scipy.optimize.minimize
 (L-BFGS-B, bounds), its value and exact gradient from Model.objective_function (one HHT
 run plus the discrete adjoint per new point).
 
-Then it explains the remaining error by the noise, two ways:
+Then it explains the remaining error:
 - linearised (Gauss-Newton): with S(t) = d xs / d(k, c) at the truth (central
   differences of two solves per parameter, relative step 1e-4) and phi_i the hat
   functions of the linear spline's knots, the minimiser moves by
@@ -21,6 +21,8 @@ Then it explains the remaining error by the noise, two ways:
   and dp with this file's noise (known: measurement.csv also has the noise-free
   samples) the error this realisation should have; the same map on the noise of seeds
   1 .. 2000 (no runs) checks the standard deviation;
+- noise-free (not with --quick): the identification from the noise-free samples gives
+  the bias of the linear interpolation between the samples alone;
 - repeated (--seeds N, default 6; none with --quick): N more noise realisations of the
   same sigma (seeds 2 .. N+1) set as the spline's points from Python, each identified
   from the same wrong start; the spread of their errors against the predicted one.
@@ -28,8 +30,8 @@ Then it explains the remaining error by the noise, two ways:
 Writes into --out (default this folder): fit.png (measured, true, start and fitted
 signals; residuals), convergence.png (parameter errors and misfit per iteration),
 history_scipy.csv (one row per iteration) and summary_scipy.json (the numbers of
-README.md). --quick (the test's): no repetitions. Exit code 1 if the optimiser did
-not converge.
+README.md). --quick (the test's): no noise-free run, no repetitions. Exit code 1 if
+the optimiser did not converge.
 """
 import argparse
 import csv
@@ -135,7 +137,7 @@ def gauss_newton(model, truth, t_s, rel_step=1e-4):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="no repetitions with other seeds")
+    ap.add_argument("--quick", action="store_true", help="only the identification of the file's samples")
     ap.add_argument("--seeds", type=int, default=6,
                     help="noise realisations identified besides the file's (default 6)")
     ap.add_argument("--model", default=os.path.join(HERE, "model.yaml"))
@@ -205,6 +207,16 @@ def main():
         _, s_start = signal(m, start)
         _, s_truth = signal(m, truth)
 
+        # The identification from the noise-free samples (not with --quick): what the
+        # linear interpolation of the samples alone does to the estimate (a bias).
+        bias = None
+        if seeds:
+            m.splines["s_meas"] = (t_s, s_true)
+            r, _, n_runs, w = identify(m, start, scale, args.ftol, args.gtol, args.maxiter)
+            bias = (np.array(r.x) - truth) / truth
+            print(f"noise-free samples: k {bias[0]:+.4%}, c {bias[1]:+.4%} (the linear "
+                  f"spline's interpolation error); {r.nit} iterations, {n_runs} runs, "
+                  f"{w:.1f} s")
         repeats = []
         for extra in range(2, 2 + seeds):
             e = sigma * np.random.default_rng(extra).standard_normal(t_s.size)
@@ -229,6 +241,12 @@ def main():
                   f"{rms[0]:.3%}, c {rms[1]:.3%} (expected {std_rel[0]:.3%}, "
                   f"{std_rel[1]:.3%}); identified - linearised at most k {gap[0]:.3%}, "
                   f"c {gap[1]:.3%}")
+            offset = np.array([np.array(r["rel_error"]) - np.array(r["predicted_rel_error"])
+                               for r in repeats])
+            print(f"identified - linearised - noise-free bias: k within "
+                  f"[{(offset[:, 0] - bias[0]).min():+.4%}, {(offset[:, 0] - bias[0]).max():+.4%}],"
+                  f" c within [{(offset[:, 1] - bias[1]).min():+.4%}, "
+                  f"{(offset[:, 1] - bias[1]).max():+.4%}]")
             m.splines["s_meas"] = (t_s, s_meas)
 
     summary = {
@@ -248,6 +266,7 @@ def main():
                          "correlation": corr,
                          "predicted_relative_error": dict(zip(NAMES, predicted_rel.tolist())),
                          "linearised_std_seeds_1_2000": dict(zip(NAMES, linear_std.tolist()))},
+        "noise_free_relative_error": None if bias is None else dict(zip(NAMES, bias.tolist())),
         "repeats": repeats,
     }
     with open(os.path.join(args.out, "summary_scipy.json"), "w") as f:
