@@ -16,6 +16,7 @@
 #include <utility>
 
 #include "dae/ida_internal.h"
+#include "dae/sundials_owners.h"
 
 namespace mbdae::dae {
 
@@ -217,28 +218,11 @@ int GglResidual::ParameterJacobian(double t, const double* y, const double* yp, 
 
 namespace {
 
-// RAII owners of the SUNDIALS objects.
-struct ContextDeleter {
-  void operator()(SUNContext c) const { SUNContext_Free(&c); }
-};
-struct VectorDeleter {
-  void operator()(N_Vector v) const { N_VDestroy(v); }
-};
-struct MatrixDeleter {
-  void operator()(SUNMatrix m) const { SUNMatDestroy(m); }
-};
-struct LinearSolverDeleter {
-  void operator()(SUNLinearSolver s) const { SUNLinSolFree(s); }
-};
-struct IdaMemDeleter {
-  void operator()(void* mem) const { IDAFree(&mem); }
-};
-using ContextPtr = std::unique_ptr<std::remove_pointer_t<SUNContext>, ContextDeleter>;
-using VectorPtr = std::unique_ptr<std::remove_pointer_t<N_Vector>, VectorDeleter>;
-using MatrixPtr = std::unique_ptr<std::remove_pointer_t<SUNMatrix>, MatrixDeleter>;
-using LinearSolverPtr =
-    std::unique_ptr<std::remove_pointer_t<SUNLinearSolver>, LinearSolverDeleter>;
-using IdaMemPtr = std::unique_ptr<void, IdaMemDeleter>;
+using sundials::ContextPtr;
+using sundials::IdaMemPtr;
+using sundials::LinearSolverPtr;
+using sundials::MatrixPtr;
+using sundials::VectorPtr;
 
 class IdaIntegrator final : public Integrator {
  public:

@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "dae/ida_internal.h"
+#include "dae/sundials_owners.h"
 #include "dae/sparse.h"
 
 namespace mbdae::sens {
@@ -46,27 +47,11 @@ namespace {
 using Dense = Eigen::MatrixXd;
 using Vec = Eigen::VectorXd;
 
-struct ContextDeleter {
-  void operator()(SUNContext c) const { SUNContext_Free(&c); }
-};
-struct VectorDeleter {
-  void operator()(N_Vector v) const { N_VDestroy(v); }
-};
-struct MatrixDeleter {
-  void operator()(SUNMatrix m) const { SUNMatDestroy(m); }
-};
-struct LinearSolverDeleter {
-  void operator()(SUNLinearSolver s) const { SUNLinSolFree(s); }
-};
-struct IdaMemDeleter {
-  void operator()(void* mem) const { IDAFree(&mem); }
-};
-using ContextPtr = std::unique_ptr<std::remove_pointer_t<SUNContext>, ContextDeleter>;
-using VectorPtr = std::unique_ptr<std::remove_pointer_t<N_Vector>, VectorDeleter>;
-using MatrixPtr = std::unique_ptr<std::remove_pointer_t<SUNMatrix>, MatrixDeleter>;
-using LinearSolverPtr =
-    std::unique_ptr<std::remove_pointer_t<SUNLinearSolver>, LinearSolverDeleter>;
-using IdaMemPtr = std::unique_ptr<void, IdaMemDeleter>;
+using dae::sundials::ContextPtr;
+using dae::sundials::IdaMemPtr;
+using dae::sundials::LinearSolverPtr;
+using dae::sundials::MatrixPtr;
+using dae::sundials::VectorPtr;
 
 // An array of N_Vectors (N_VCloneVectorArray) with its owner.
 class VectorArray {
