@@ -1120,7 +1120,11 @@ double Expression::EvaluateSplineOrdinateGradient(const ExpressionInputs& in, in
   }
   dy[point] = 1;
   const Spline tangent = sp.Tangent(dy);
-  std::vector<const Spline*> tangents(spline + 1, nullptr);
+  // Indexed by spline: large enough for every spline the expression uses (a null
+  // tangent is a zero direction).
+  int size = spline + 1;
+  for (int s : splines_used_) size = std::max(size, s + 1);
+  std::vector<const Spline*> tangents(size, nullptr);
   tangents[spline] = &tangent;
   ParameterDirection dir;
   dir.spline_tangents = tangents.data();

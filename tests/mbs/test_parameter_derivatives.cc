@@ -123,6 +123,35 @@ TEST(ExpressionDirectional, MatchesCentralDifferences) {
     ExpectClose(e.EvaluateSplineOrdinateGradient(in, 0, i), (at(h) - at(-h)) / (2 * h), 1, 1e-8,
                 "ordinate " + std::to_string(i));
   }
+  // Several splines in one expression: the ordinate gradient of the first one (a
+  // regression: the tangent array was sized by the differentiated spline's index and
+  // read past its end for the later ones, a crash in the robot example's objectives).
+  {
+    SymbolTable sym2;
+    sym2.parameters = {"a", "b"};
+    sym2.splines = {"u", "w", "z"};
+    sym2.allow_time = true;
+    const Spline w({0.0, 1.0, 2.0}, {1.0, -1.0, 0.5}, u.kind());
+    const Spline z({0.0, 2.0}, {0.2, 0.4}, u.kind());
+    const Spline* three[3] = {&u, &w, &z};
+    const Expression e2 = Expression::Parse("spline(u, t)^2 + a*spline(w, t)^2 + spline(z, t)*spline(u, t)", sym2);
+    ExpressionInputs in2 = in;
+    in2.splines = three;
+    for (int i = 0; i < 4; ++i) {
+      const double h = 1e-6;
+      auto at = [&](double eps) {
+        std::vector<double> yy = u.y();
+        yy[i] += eps;
+        const Spline us(u.x(), yy, u.kind());
+        const Spline* sp[3] = {&us, &w, &z};
+        ExpressionInputs j = in2;
+        j.splines = sp;
+        return e2.Evaluate(j);
+      };
+      ExpectClose(e2.EvaluateSplineOrdinateGradient(in2, 0, i), (at(h) - at(-h)) / (2 * h), 1, 1e-8,
+                  "three splines, ordinate " + std::to_string(i));
+    }
+  }
 }
 
 const char* kModel = R"Y(format: 1
