@@ -309,8 +309,11 @@ OptimizationProblem LoadOptimizationProblem(const std::string& path) {
         r.Fail(n, el, "unknown spline '" + name + "' of model " + p.model_path +
                           (known.empty() ? std::string(" (it has no splines)") : "; its splines: " + Join(known)));
       const mbs::SplineDef& s = m.splines[index];
-      if (s.depends_on_parameters())
-        r.Fail(n, el, "the points of spline '" + name + "' depend on parameters: its ordinates cannot be variables");
+      // Ordinates written as expressions of parameters are computed, not free; abscissae
+      // that depend on parameters are fine (the ordinates are set after a reload).
+      for (const mbs::Expression& e : s.y_expressions)
+        if (!e.parameters_used().empty())
+          r.Fail(n, el, "the ordinates of spline '" + name + "' are computed from parameters: they cannot be variables");
       const int count = static_cast<int>(s.spline.y().size());
       std::vector<int> points;
       if (const YAML::Node pts = v["points"]) {
