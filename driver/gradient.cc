@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "mbs/model_writer.h"
 #include "mbs/sensitivity_parameters.h"
 #include "sensitivities/hht_sensitivity.h"
 #include "sensitivities/idas_sensitivity.h"
@@ -28,27 +29,8 @@ std::string Join(const std::vector<std::string>& names) {
   return out;
 }
 
-std::string JsonString(const std::string& s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
+// JSON strings: quoted and escaped as the model writer does.
+std::string JsonString(const std::string& s) { return mbs::DoubleQuoted(s); }
 
 std::string JsonNumber(double x) {
   if (!std::isfinite(x)) return "null";

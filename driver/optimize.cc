@@ -18,6 +18,7 @@
 #include "io/results_file.h"
 #include "mbs/freedyn.h"
 #include "mbs/loader.h"
+#include "mbs/model_writer.h"
 
 namespace mbdae::driver {
 namespace {
@@ -39,22 +40,8 @@ std::string JsonNumber(double x) {
   return buf;
 }
 
-std::string JsonString(const std::string& s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
+// JSON strings: quoted and escaped as the model writer does.
+std::string JsonString(const std::string& s) { return mbs::DoubleQuoted(s); }
 
 std::string Join(const std::vector<std::string>& names) {
   std::string out;
