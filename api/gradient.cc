@@ -64,14 +64,6 @@ const driver::GradientResult& Stored(const mbdae_model& m) {
   return *m.gradient;
 }
 
-double ParseNumber(const std::string& key, const char* value) {
-  char* end = nullptr;
-  const double x = std::strtod(value, &end);
-  if (*value == '\0' || *end != '\0' || !std::isfinite(x))
-    throw ApiError(MBDAE_ERROR_INPUT,
-                   "option " + key + ": expected a number, got '" + std::string(value) + "'");
-  return x;
-}
 
 }  // namespace
 
@@ -79,13 +71,13 @@ bool SetGradientOption(mbdae_model& m, const std::string& key, const char* value
   if (key.rfind("gradient.", 0) != 0) return false;
   driver::GradientRequest r = m.gradient_settings;
   if (key == "gradient.fd_step") {
-    r.fd_step = ParseNumber(key, value);
+    r.fd_step = ParseOptionNumber(key, value);
   } else if (key == "gradient.newton_factor") {
-    r.newton_factor = ParseNumber(key, value);
+    r.newton_factor = ParseOptionNumber(key, value);
   } else if (key == "gradient.trajectory_memory") {
-    r.trajectory_memory = ParseNumber(key, value);
+    r.trajectory_memory = ParseOptionNumber(key, value);
   } else if (key == "gradient.ida_checkpoint_steps") {
-    const double x = ParseNumber(key, value);
+    const double x = ParseOptionNumber(key, value);
     if (x != std::floor(x) || x < 1 || x > 1e15)
       throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected an integer >= 1, got '" +
                                             std::string(value) + "'");

@@ -440,6 +440,8 @@ const char* const kOptionKeys =
     "hht.modified, hht.form, ida.rtol, ida.atol, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
+}  // namespace
+
 double ParseOptionNumber(const std::string& key, const char* value) {
   char* end = nullptr;
   const double x = std::strtod(value, &end);
@@ -448,6 +450,8 @@ double ParseOptionNumber(const std::string& key, const char* value) {
                    "option " + key + ": expected a number, got '" + std::string(value) + "'");
   return x;
 }
+
+namespace {
 
 bool ParseOptionBool(const std::string& key, const char* value) {
   const std::string v = value;

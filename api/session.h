@@ -127,6 +127,8 @@ void GetGradient(const mbdae_model& m, mbdae_gradient_output what, double* out, 
 void GradientReport(const mbdae_model& m, bool json, char* buf, size_t size, size_t* length);
 // "gradient.*" options (SetGradientOption returns false for a key that is not one).
 bool SetGradientOption(mbdae_model& m, const std::string& key, const char* value);
+// The value of option `key` as a finite number; ApiError (MBDAE_ERROR_INPUT) otherwise.
+double ParseOptionNumber(const std::string& key, const char* value);
 bool GetGradientOption(const mbdae_model& m, const std::string& key, std::string* value);
 
 // Implemented in api/state_matrices.cc. All throw ApiError.
