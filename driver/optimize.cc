@@ -207,25 +207,18 @@ void ReadIpoptOptions(const ProblemReader& r, const YAML::Node& node, std::vecto
 
 }  // namespace
 
-OptimizationProblem LoadOptimizationProblem(const std::string& path) {
+namespace {
+
+// The problem from its parsed YAML; `path` names it in messages and its folder is where
+// `model:` is resolved.
+OptimizationProblem ReadProblem(const YAML::Node& root, const std::string& path) {
   ProblemReader r(path);
   OptimizationProblem p;
   p.file = path;
-  YAML::Node root;
-  {
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": the problem file is a directory");
-    try {
-      root = YAML::LoadFile(path);
-    } catch (const YAML::BadFile&) {
-      throw InputError(path + ": cannot open the problem file");
-    } catch (const YAML::Exception& e) {
-      r.Fail(e.mark, "problem", "not valid YAML: " + e.msg);
-    }
-  }
   const std::string element = "problem";
   if (!root.IsMap()) r.Fail(root, element, "expected a mapping (format, model, variables, minimize, ...), got " + r.Kind(root));
-  r.CheckKeys(root, element, {"format", "model", "variables", "minimize", "constraints", "simulation", "ipopt", "method"});
+  r.CheckKeys(root, element,
+              {"format", "model", "parameters", "variables", "minimize", "constraints", "simulation", "ipopt", "method"});
   auto required = [&](const char* key) {
     const YAML::Node n = root[key];
     if (!n) r.Fail(root, element, std::string("missing key '") + key + "'");
@@ -248,6 +241,34 @@ OptimizationProblem LoadOptimizationProblem(const std::string& path) {
                                        (std::filesystem::exists(p.model_path, ec) ? " as a file" : ""));
   }
   p.model = mbs::LoadAnyModel(p.model_path);
+
+  // Fixed parameters: names checked against the model, then the model loaded with them.
+  std::map<std::string, YAML::Node> fixed_nodes;
+  if (const YAML::Node ps = root["parameters"]) {
+    if (!ps.IsMap()) r.Fail(ps, "parameters", "expected a mapping {NAME: VALUE, ...}, got " + r.Kind(ps));
+    std::vector<std::string> known;
+    for (const auto& q : p.model.parameters) known.push_back(q.name);
+    for (auto it = ps.begin(); it != ps.end(); ++it) {
+      const std::string name = r.Name(it->first, "parameters", "a parameter");
+      if (p.model.find_parameter(name) < 0)
+        r.Fail(it->first, "parameters", "unknown parameter '" + name + "' of model " + p.model_path +
+                                            (known.empty() ? std::string(" (it has no parameters)")
+                                                           : "; its parameters: " + Join(known)));
+      const double value = r.Number(it->second, "parameters", name);
+      if (!std::isfinite(value)) r.Fail(it->second, "parameters", name + " must be finite");
+      p.parameters[name] = value;
+      fixed_nodes[name] = it->first;
+    }
+    if (!p.parameters.empty()) {
+      mbs::LoadOptions lo;
+      lo.parameter_overrides = p.parameters;
+      try {
+        p.model = mbs::LoadAnyModel(p.model_path, lo);
+      } catch (const mbs::ModelError& e) {
+        r.Fail(ps, "parameters", std::string("the model refuses these values: ") + e.what());
+      }
+    }
+  }
   const mbs::Model& m = p.model;
   const std::vector<std::string> objectives = ObjectiveNames(m);
 
@@ -259,7 +280,7 @@ OptimizationProblem LoadOptimizationProblem(const std::string& path) {
   for (size_t k = 0; k < vars.size(); ++k) {
     const YAML::Node v = vars[k];
     const std::string el = "variables[" + std::to_string(k) + "]";
-    r.CheckKeys(v, el, {"parameter", "spline", "points", "lower", "upper"});
+    r.CheckKeys(v, el, {"parameter", "spline", "points", "lower", "upper", "start"});
     double lower = -kInf, upper = kInf;
     if (v["lower"]) lower = r.Number(v["lower"], el, "lower");
     if (v["upper"]) upper = r.Number(v["upper"], el, "upper");
@@ -279,6 +300,9 @@ OptimizationProblem LoadOptimizationProblem(const std::string& path) {
       if (index < 0)
         r.Fail(n, el, "unknown parameter '" + name + "' of model " + p.model_path +
                           (known.empty() ? std::string(" (it has no parameters)") : "; its parameters: " + Join(known)));
+      if (p.parameters.count(name))
+        r.Fail(n, el, "parameter '" + name + "' is fixed in `parameters:` (line " +
+                          std::to_string(fixed_nodes[name].Mark().line + 1) + "): it cannot also be a variable");
       OptimizationVariable ov;
       ov.name = name;
       ov.parameter = index;
@@ -325,6 +349,34 @@ OptimizationProblem LoadOptimizationProblem(const std::string& path) {
       }
     } else {
       r.Fail(v, el, "expected {parameter: NAME} or {spline: NAME}");
+    }
+    if (const YAML::Node s = v["start"]) {
+      // One number for every ordinate, or (splines) one per selected ordinate.
+      auto check = [&](const YAML::Node& node, double x, const std::string& what) {
+        if (!std::isfinite(x)) r.Fail(node, el, what + " must be finite");
+        if (x < lower || x > upper)
+          r.Fail(node, el, what + " " + Num(x) + " is outside the bounds [" + Num(lower) + ", " + Num(upper) + "]");
+      };
+      if (s.IsSequence()) {
+        if (v["parameter"]) r.Fail(s, el, "start of a parameter is one number, got a list");
+        if (s.size() != add.size())
+          r.Fail(s, el, "start has " + std::to_string(s.size()) + " values, the variable " + std::to_string(add.size()) +
+                            " ordinates (" + add.front().name + (add.size() > 1 ? " ... " + add.back().name : "") +
+                            "): give one number for all, or one per ordinate");
+        for (size_t i = 0; i < add.size(); ++i) {
+          const std::string what = "start[" + std::to_string(i) + "]";
+          add[i].start = r.Number(s[i], el, what);
+          check(s[i], add[i].start, what);
+          add[i].start_given = true;
+        }
+      } else {
+        const double x = r.Number(s, el, "start");
+        check(s, x, "start");
+        for (auto& ov : add) {
+          ov.start = x;
+          ov.start_given = true;
+        }
+      }
     }
     for (auto& ov : add) {
       if (!seen.insert(ov.name).second) r.Fail(v, el, "variable '" + ov.name + "' is listed twice");
@@ -386,6 +438,33 @@ OptimizationProblem LoadOptimizationProblem(const std::string& path) {
   return p;
 }
 
+}  // namespace
+
+OptimizationProblem LoadOptimizationProblem(const std::string& path) {
+  YAML::Node root;
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": the problem file is a directory");
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw InputError(path + ": cannot open the problem file");
+  } catch (const YAML::Exception& e) {
+    ProblemReader(path).Fail(e.mark, "problem", "not valid YAML: " + e.msg);
+  }
+  return ReadProblem(root, path);
+}
+
+OptimizationProblem LoadOptimizationProblemFromString(const std::string& text, const std::string& name) {
+  const std::string path = name.empty() ? "<string>" : name;
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    ProblemReader(path).Fail(e.mark, "problem", "not valid YAML: " + e.msg);
+  }
+  return ReadProblem(root, path);
+}
+
 namespace {
 
 // ---- the NLP ----------------------------------------------------------------------
@@ -420,6 +499,7 @@ class ShootingNlp : public Ipopt::TNLP {
     mbs::Model m;
     if (has_parameters_ || !extra.empty()) {
       mbs::LoadOptions lo;
+      lo.parameter_overrides = p_.parameters;
       for (size_t k = 0; k < x.size(); ++k)
         if (p_.variables[k].parameter >= 0) lo.parameter_overrides[p_.variables[k].name] = x[k];
       for (const auto& [name, value] : extra) lo.parameter_overrides[name] = value;
@@ -594,6 +674,7 @@ class ShootingNlp : public Ipopt::TNLP {
     it.gradient_evaluations = r_->gradient_evaluations;
     r_->history.push_back(it);
     if (o_.iteration) o_.iteration(it);
+    if (o_.stop && o_.stop(it)) return false;  // Ipopt: User_Requested_Stop
     return true;
   }
 

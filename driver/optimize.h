@@ -13,10 +13,11 @@
 //
 //   format: 1
 //   model: rotor.yaml                 # relative to the problem file
+//   parameters: {g: 2.0}              # fixed overrides of model parameters (not variables)
 //   variables:                        # each with optional bounds (default unbounded)
-//     - {parameter: J, lower: 0.1, upper: 2}
-//     - {spline: tau, lower: -40, upper: 40}            # every ordinate of the spline
-//     - {spline: u, points: [1, 2], lower: -1, upper: 1}  # ordinates u[1], u[2]
+//     - {parameter: J, lower: 0.1, upper: 2, start: 1.5}
+//     - {spline: tau, lower: -40, upper: 40, start: 0}    # every ordinate of the spline
+//     - {spline: u, points: [1, 2], lower: -1, upper: 1, start: [0.5, -0.5]}  # u[1], u[2]
 //   minimize: energy                  # an objective of the model
 //   constraints:                      # objectives of the model with bounds
 //     - {objective: final_angle, equals: 1.0}
@@ -25,24 +26,34 @@
 //   ipopt: {tol: 1.0e-10, max_iter: 200}  # Ipopt options, typed by Ipopt's registry
 //   method: adjoint                   # adjoint (default) | forward | fd
 //
-// Every mistake (unknown keys, variable or objective names, lower > upper, a missing
-// model file, a bad Ipopt option) is an InputError "FILE:LINE:COLUMN: ELEMENT: what is
-// wrong" naming the problem file, thrown before anything runs; mistakes inside the model
-// file are mbs::ModelError naming the model file.
+// `parameters:` fixes model parameters that are not variables (e.g. a continuation in
+// gravity): the model is loaded with these overrides (as `--set NAME=VALUE`) for every
+// run; a name that is not a parameter of the model, or one that is also a variable, is an
+// error. `start:` is the variable's starting value instead of the model's (with the
+// overrides): one number, or for a spline a list with one value per selected ordinate
+// (`points`, else every ordinate); it must lie within the variable's bounds.
+//
+// Every mistake (unknown keys, variable, parameter or objective names, lower > upper, a
+// start outside the bounds or of the wrong length, a missing model file, a bad Ipopt
+// option, a `parameters:` value the model refuses) is an InputError "FILE:LINE:COLUMN:
+// ELEMENT: what is wrong" naming the problem file, thrown before anything runs; mistakes
+// inside the model file are mbs::ModelError naming the model file.
 //
 // Optimize evaluates f, grad f, g and the (dense) Jacobian of g at a point x with one
 // ComputeGradient call of every objective needed (minimize first, then the constraints'
 // objectives), cached for as long as Ipopt asks about the same x. The model for x is the
-// model file reloaded with the parameter variables as overrides (when there are any),
+// model file reloaded with the `parameters:` and the parameter variables as overrides
+// (when there are parameter variables; else the model as loaded with `parameters:`),
 // with the spline ordinates set by Spline::SetPoints. A failed run (or gradient) at a
 // trial point makes eval_* return false: Ipopt then cuts the step. The variables start
-// at the model's values (warm start). At the end the model with the final variables is
+// at their `start:`, else at the model's values (warm start). At the end the model with the final variables is
 // simulated into the results file, and the optimisation is added to it (docs/
 // sensitivities.md, "Optimal control: mbdae optimize").
 #pragma once
 
 #include <functional>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -58,7 +69,8 @@ struct OptimizationVariable {
   int spline = -1, point = -1;  // Model::splines index and 0-based point of an ordinate
   double lower = -std::numeric_limits<double>::infinity();
   double upper = std::numeric_limits<double>::infinity();
-  double start = 0;  // the model's value
+  double start = 0;  // the problem's `start:`, else the model's value
+  bool start_given = false;  // `start:` in the problem file
 };
 
 struct OptimizationConstraint {
@@ -80,7 +92,9 @@ struct IpoptOption {
 struct OptimizationProblem {
   std::string file;        // the problem file as given
   std::string model_path;  // the model file, resolved against the problem file's folder
-  mbs::Model model;        // as loaded (the starting values)
+  // `parameters:`: fixed overrides of model parameters, applied to every load of the model.
+  std::map<std::string, double> parameters;
+  mbs::Model model;        // as loaded with `parameters:` (the starting values)
   mbs::SimulationSettings settings;  // the model's, with the problem's overrides, validated
   std::vector<OptimizationVariable> variables;
   std::string objective;
@@ -95,6 +109,9 @@ struct OptimizationProblem {
 // Throws InputError (problem file mistakes, with FILE:LINE:COLUMN) or mbs::ModelError
 // (model file mistakes).
 OptimizationProblem LoadOptimizationProblem(const std::string& path);
+// The same from YAML text: `name` names it in messages ("" = "<string>") and `model:` is
+// resolved against the folder of `name` ("" or a bare file name: the working folder).
+OptimizationProblem LoadOptimizationProblemFromString(const std::string& text, const std::string& name);
 
 // One Ipopt iteration (intermediate_callback): iteration 0 is the starting point.
 struct OptimizationIteration {
@@ -114,6 +131,9 @@ struct OptimizeOptions {
   std::string results_path;  // the final run plus /optimization; "": no file
   // Called after every iteration (the program prints a progress line).
   std::function<void(const OptimizationIteration&)> iteration;
+  // Called after `iteration`; returning true stops Ipopt (ipopt_status
+  // User_Requested_Stop, status "failed"; the final point is still run and written).
+  std::function<bool(const OptimizationIteration&)> stop;
 };
 
 struct OptimizationResult {
