@@ -320,6 +320,70 @@ mbdae_status mbdae_get_gradient(mbdae_model* model, mbdae_gradient_output what, 
 mbdae_status mbdae_gradient_report(mbdae_model* model, int json, char* buf, size_t size,
                                    size_t* length);
 
+/* ---- Optimal control and identification ------------------------------------------- */
+
+/* The result of an optimisation (mbdae_optimize); freed with mbdae_optimization_free. */
+typedef struct mbdae_optimization mbdae_optimization;
+
+/* Called after every Ipopt iteration (iteration 0: the starting point) with the objective
+ * and the constraint violation (Ipopt's inf_pr) of the iterate. Return 0 to go on; any
+ * other value stops the optimisation (Ipopt: User_Requested_Stop; the result is then
+ * "failed", with the last iterate run and written as usual). Runs on the calling thread,
+ * inside mbdae_optimize: it must not call mbdae_optimize itself. */
+typedef int (*mbdae_progress_callback)(int iteration, double objective,
+                                       double constraint_violation, void* user_data);
+
+/* Solves the problem file `problem_path` as `mbdae optimize` does (docs/sensitivities.md,
+ * "Optimal control: mbdae optimize"): single shooting with Ipopt over the parameters and
+ * spline ordinates of its `variables:`, minimising an objective of the model subject to
+ * bounds on other objectives, with exact gradients (`method:`) and a limited-memory
+ * Hessian. The problem's `model:` is resolved against the problem file's folder.
+ * results_path: NULL or "": no file; else the run at the final point plus the group
+ *   /optimization (variables, history, ...), as `mbdae optimize -o` writes it.
+ * progress: NULL or a function called after every iteration with user_data.
+ * *result (not NULL): a new result on MBDAE_OK, also when Ipopt did not converge (read
+ *   its status with mbdae_optimization_report); left unchanged on an error.
+ *
+ * Errors (no result): a mistake in the problem file (unknown keys or names, bounds, a
+ * start outside the bounds, a bad Ipopt option; the message names the problem file, line
+ * and column) or in its model file (named), or a variable the gradient method cannot
+ * differentiate, is MBDAE_ERROR_INPUT; a problem file that cannot be read, or a results
+ * path whose folder does not exist, MBDAE_ERROR_IO; NULL problem_path or result
+ * MBDAE_ERROR_ARGUMENT. Nothing is written then. */
+mbdae_status mbdae_optimize(const char* problem_path, const char* results_path,
+                            mbdae_progress_callback progress, void* user_data,
+                            mbdae_optimization** result);
+/* The same with the problem as YAML text: `name` is used in messages and `model:` is
+ * resolved against its folder (as mbdae_model_from_string; NULL or "" = the working
+ * folder, messages say "<string>"). */
+mbdae_status mbdae_optimize_string(const char* text, const char* name, const char* results_path,
+                                   mbdae_progress_callback progress, void* user_data,
+                                   mbdae_optimization** result);
+/* Frees a result (NULL is allowed). */
+void mbdae_optimization_free(mbdae_optimization* result);
+
+/* The result as text, NUL-terminated: json = 0 the report `mbdae optimize` prints (status,
+ * objective, constraints, variables, iterations, times), json != 0 its `--json` object
+ * {"status": "solved" | "failed", "objective": ..., "iterations": ..., "variables":
+ * {"NAME": ...}, "constraint_violation": ..., "ipopt_status": ..., "objective_name": ...,
+ * "constraints": {"OBJECTIVE": value}, "gradient_evaluations": ..., "failed_evaluations":
+ * ..., "runs": ..., "gradient_cpu_time": ..., "cpu_time": ..., "wall_time": ...}
+ * (numbers with 17 significant digits, non-finite as null). buf = NULL with size = 0 asks
+ * for the length: *length (not NULL) is then the number of bytes needed, the NUL
+ * included; a buffer shorter than that is MBDAE_ERROR_SIZE. */
+mbdae_status mbdae_optimization_report(const mbdae_optimization* result, int json, char* buf,
+                                       size_t size, size_t* length);
+
+/* Columns of the iteration history: iteration, objective, constraint violation (Ipopt's
+ * inf_pr), dual infeasibility (inf_du), barrier parameter mu, step (alpha_pr), line-search
+ * trials, gradient evaluations so far. */
+#define MBDAE_OPTIMIZATION_HISTORY_COLUMNS 8
+/* The history, one row per iteration (row 0: the starting point), row-major into out
+ * (n = rows * MBDAE_OPTIMIZATION_HISTORY_COLUMNS values). out = NULL with n = 0 asks for
+ * the number of rows (*rows, not NULL). */
+mbdae_status mbdae_optimization_history(const mbdae_optimization* result, double* out, int n,
+                                        int* rows);
+
 #ifdef __cplusplus
 }
 #endif

@@ -118,6 +118,8 @@ void CheckIndex(int index, int count, const char* what) {
 
 }  // namespace
 
+mbdae_status CallApi(const std::function<void()>& body) { return Call(body); }
+
 // ---- Loading -------------------------------------------------------------------------------
 
 // The model from its source with the given parameter overrides and the spline points set

@@ -4,11 +4,14 @@
 // Files: api/mbdae_api.cc (the extern "C" functions: handles, errors, names, parameters,
 // splines, options, assembly, solving, stored outputs, results file); api/state_matrices.cc
 // (vectors, matrices, measures at the current state); api/gradient.cc (objectives and
-// their gradients: driver::ComputeGradient on the handle's model). Every extern "C" function catches
+// their gradients: driver::ComputeGradient on the handle's model); api/optimize.cc
+// (mbdae_optimize: driver::Optimize, with its own extern "C" functions run through
+// CallApi). Every extern "C" function catches
 // everything: ApiError gives its status, mbs::ModelError / driver::InputError
 // MBDAE_ERROR_INPUT, std::bad_alloc and anything else MBDAE_ERROR_INTERNAL.
 #pragma once
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -109,6 +112,11 @@ struct mbdae_model {
 };
 
 namespace mbdae::api {
+
+// Runs the body of an extern "C" function as every call of the API does (Call in
+// api/mbdae_api.cc): MBDAE_OK, or the status of what it throws with the message as the
+// thread's last error. For the extern "C" functions of the other files (api/optimize.cc).
+mbdae_status CallApi(const std::function<void()>& body);
 
 // Assembles if needed (throws ApiError MBDAE_ERROR_SOLVER or INPUT with the reason).
 void EnsureAssembled(mbdae_model& m);
