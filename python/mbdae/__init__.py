@@ -15,7 +15,8 @@ sparse matrices for the matrices, exceptions with the library's message. Example
 Gradients of the model's objectives (``objectives:`` of the model file) with respect to
 parameters and spline ordinates: ``m.gradient(wrt=["k"], method="adjoint")``; as a
 function for ``scipy.optimize.minimize``: ``f = m.objective_function("G", ["k"])``,
-``minimize(f, f.x0, jac=f.jac)``.
+``minimize(f, f.x0, jac=f.jac)``. A problem file solved with Ipopt as ``mbdae optimize``
+does: ``r = mbdae.optimize("problem.yaml")``, ``r.objective``, ``r.variables``.
 
 The library libmbdae.so is found through the environment variable MBDAE_LIBRARY, next to
 this package, or in the build tree of a source checkout (see :data:`library_path`).
@@ -26,6 +27,7 @@ from .errors import (ArgumentError, Error, FileError, InputError, InternalError,
                      OrderError, SizeError, SolverError)
 from .gradient import METHODS, Gradient, ObjectiveFunction
 from .model import MATRICES, OPTIONS, VECTORS, Model, Row, State
+from .optimize import HISTORY_COLUMNS, OptimizationResult, optimize, optimize_string
 
 __version__ = _lib.lib.mbdae_version().decode()
 #: The path of the loaded libmbdae.so.
@@ -35,5 +37,6 @@ api_version = _lib.lib.mbdae_api_version()
 
 __all__ = ["Model", "State", "Row", "Error", "InputError", "ArgumentError", "SizeError",
            "OrderError", "SolverError", "FileError", "IOError_", "InternalError", "VECTORS",
-           "MATRICES", "OPTIONS", "METHODS", "Gradient", "ObjectiveFunction", "library_path",
+           "MATRICES", "OPTIONS", "METHODS", "Gradient", "ObjectiveFunction", "optimize",
+           "optimize_string", "OptimizationResult", "HISTORY_COLUMNS", "library_path",
            "api_version", "__version__"]
