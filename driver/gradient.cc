@@ -298,6 +298,14 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
       return finish();
     }
     sens::ModelObjectives objectives(m, *asmb.system, asmb.kept, params);
+    if (hht && request.method == GradientMethod::kAdjoint) {
+      // The backward sweep starts at t_end: count the angles' turns on from there.
+      sens::ModelObjectives::AngleTrack track;
+      track.t = r.forward.objectives_angle_t;
+      track.angles = r.forward.objectives_angles;
+      track.rates = r.forward.objectives_angle_rates;
+      objectives.set_angle_track(track);
+    }
     if (hht) {
       const dae::HhtOptions ho = GradientHhtOptions(settings, newton_factor);
       sens::HhtSensitivityResult sr;

@@ -357,9 +357,7 @@ std::vector<double> OutputTimes(double t_end, double output_step) {
   return times;
 }
 
-double UnwrapAngle(double value, double previous) {
-  return value + 2 * kPi * std::round((previous - value) / (2 * kPi));
-}
+double UnwrapAngle(double value, double previous) { return mbs::UnwrapAngle(value, previous); }
 
 void AngularVelocityWorld(const double* e, const double* ed, double* w) {
   // E(e) = [-e1  e0 -e3  e2; -e2  e3  e0 -e1; -e3 -e2  e1  e0], omega = 2 E e'.
@@ -724,6 +722,10 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
                                phi.data()) != 0) {
         summary.objectives_note = std::string("terminal values failed: ") + objectives->last_error();
       } else {
+        const sens::ModelObjectives::AngleTrack& track = objectives->angle_track();
+        summary.objectives_angle_t = track.t;
+        summary.objectives_angles = track.angles;
+        summary.objectives_angle_rates = track.rates;
         for (int i = 0; i < objectives->num_objectives(); ++i) {
           SimulationSummary::ObjectiveValue o;
           o.name = objectives->names()[i];

@@ -151,6 +151,10 @@ struct SimulationSummary {
   };
   std::vector<ObjectiveValue> objectives;
   std::string objectives_note;
+  // Where the objectives' count of turns of angle measures ended (sens::ModelObjectives::
+  // angle_track after the terminal values): an adjoint sweep starts from there.
+  double objectives_angle_t = 0;
+  std::vector<double> objectives_angles, objectives_angle_rates;
 
   std::string FullReport() const;  // the multi-line summary the program prints
 };

@@ -1119,15 +1119,26 @@ double Expression::EvaluateSplineOrdinateGradient(const ExpressionInputs& in, in
                             std::to_string(dy.size()));
   }
   dy[point] = 1;
-  const Spline tangent = sp.Tangent(dy);
+  return EvaluateSplineTangent(in, spline, sp.Tangent(dy));
+}
+
+double Expression::EvaluateSplineTangent(const ExpressionInputs& in, int spline, const Spline& tangent) const {
+  if (std::find(splines_used_.begin(), splines_used_.end(), spline) == splines_used_.end()) return 0;
   // Indexed by spline: large enough for every spline the expression uses (a null
-  // tangent is a zero direction).
+  // tangent is a zero direction). Expressions call few splines: on the stack.
+  constexpr int kStack = 16;
   int size = spline + 1;
   for (int s : splines_used_) size = std::max(size, s + 1);
-  std::vector<const Spline*> tangents(size, nullptr);
+  const Spline* stack[kStack] = {};
+  std::vector<const Spline*> heap;
+  const Spline** tangents = stack;
+  if (size > kStack) {
+    heap.assign(size, nullptr);
+    tangents = heap.data();
+  }
   tangents[spline] = &tangent;
   ParameterDirection dir;
-  dir.spline_tangents = tangents.data();
+  dir.spline_tangents = tangents;
   return EvaluateDirectional(in, dir).dir;
 }
 

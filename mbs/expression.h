@@ -123,6 +123,9 @@ class Expression {
   // fixed t, measures and parameters; 0 when the expression does not call that spline.
   // Allocates (it builds the ordinate's tangent spline).
   double EvaluateSplineOrdinateGradient(const ExpressionInputs& in, int spline, int point) const;
+  // The same along a prepared tangent (Spline::Tangent of the ordinate direction) of
+  // spline `spline`: no allocation, for callers that evaluate it at many points.
+  double EvaluateSplineTangent(const ExpressionInputs& in, int spline, const Spline& tangent) const;
 
   bool is_constant() const;       // refers to no parameter, no measure and not to t
   bool uses_time() const { return uses_time_; }

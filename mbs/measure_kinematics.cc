@@ -299,4 +299,9 @@ Vec14 GatherLocal(const int offset[2], const double* x) {
   return l;
 }
 
+double UnwrapAngle(double value, double reference) {
+  constexpr double kTwoPi = 6.283185307179586476925286766559;
+  return value + kTwoPi * std::round((reference - value) / kTwoPi);
+}
+
 }  // namespace mbdae::mbs

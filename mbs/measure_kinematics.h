@@ -90,6 +90,10 @@ void EvaluateMeasureState(const MeasureDef& def, const double* q, const double* 
 
 // The value at the measure's quantity, for output: position m(q), velocity g.v,
 // acceleration g.a + v^T H v. v and a may be null (zero).
+// The angle `value` plus the multiple of 2 pi that brings it nearest to `reference` (the
+// turn counting of angle measures: the results file's rows, the objectives).
+double UnwrapAngle(double value, double reference);
+
 double EvaluateMeasureValue(const MeasureDef& def, const double* q, const double* v,
                             const double* a);
 

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <exception>
+#include <limits>
+#include <string>
 #include <stdexcept>
 
 #include "mbs/measure_kinematics.h"
@@ -34,6 +36,10 @@ struct ModelObjectives::Impl {
   // parameter that inline points of spline s use (empty otherwise).
   std::vector<std::vector<double>> chain;
   std::vector<std::vector<std::vector<double>>> spline_dirs;
+  // tangents[k][s]: Spline::Tangent of spline s along params[k] (its ordinate, or
+  // spline_dirs[k][s]), built on first use; the ordinates' abscissae do not change
+  // during the object's life, so one build serves every step of a sweep.
+  std::vector<std::vector<std::unique_ptr<mbs::Spline>>> tangents;
   int nq = 0, nc_full = 0;
   std::vector<std::string> names;
   std::vector<int> used;                 // model measure indices used by some objective
@@ -44,6 +50,9 @@ struct ModelObjectives::Impl {
   std::vector<double> lambda_full, dlambda_full;
   std::vector<const mbs::Spline*> splines;
   std::unique_ptr<mbs::ReactionMeasures> reactions;
+  std::vector<int> angles;               // used angle measures (model order)
+  std::vector<mbs::MeasureDef> rate_defs;  // their rates
+  AngleTrack track;
   bool acceleration = false, multipliers = false;
   std::string error;
 
@@ -97,11 +106,40 @@ struct ModelObjectives::Impl {
       defs[u] = mbs::ResolveMeasure(model, u);
       if (me.quantity == mbs::Quantity::kAcceleration) acceleration = true;
       if (me.offset_initial) offsets[u] = mbs::EvaluateMeasureValue(defs[u], q0.data(), v0.data(), nullptr);
+      if (me.type == mbs::MeasureType::kRotational && me.quantity == mbs::Quantity::kPosition) {
+        angles.push_back(u);
+        mbs::MeasureDef rate = defs[u];
+        rate.quantity = mbs::Quantity::kVelocity;
+        rate_defs.push_back(rate);
+        track.angles.push_back(mbs::EvaluateMeasureValue(defs[u], q0.data(), v0.data(), nullptr));
+        track.rates.push_back(0.0);
+      }
     }
+    track.t = std::numeric_limits<double>::quiet_NaN();
     if (any_reaction) reactions = std::make_unique<mbs::ReactionMeasures>(model, system.parameters());
     lambda_full.assign(nc_full, 0.0);
     dlambda_full.assign(nc_full, 0.0);
     for (const mbs::SplineDef& sd : model.splines) splines.push_back(&sd.spline);
+  }
+
+  // The tangent of spline s along params[k] (null: zero direction).
+  const mbs::Spline* Tangent(size_t k, int s) {
+    if (tangents.size() != params.size()) tangents.resize(params.size());
+    std::vector<std::unique_ptr<mbs::Spline>>& row = tangents[k];
+    if (row.empty()) row.resize(model.splines.size());
+    if (!row[s]) {
+      const mbs::Spline& spline = model.splines[s].spline;
+      if (params[k].parameter >= 0) {
+        if (spline_dirs[k][s].empty()) return nullptr;
+        row[s] = std::make_unique<mbs::Spline>(spline.Tangent(spline_dirs[k][s]));
+      } else {
+        if (params[k].spline != s) return nullptr;
+        std::vector<double> dy(spline.x().size(), 0.0);
+        dy.at(params[k].point) = 1;
+        row[s] = std::make_unique<mbs::Spline>(spline.Tangent(dy));
+      }
+    }
+    return row[s].get();
   }
 
   mbs::ExpressionInputs Inputs(double t) const {
@@ -136,6 +174,19 @@ struct ModelObjectives::Impl {
       }
       values[u] = mbs::EvaluateMeasureValue(defs[u], x.q, x.v, x.a) - offsets[u];
     }
+    // Angles: the turn nearest to the prediction from the last evaluation.
+    for (size_t k = 0; k < angles.size(); ++k) {
+      const int u = angles[k];
+      const double rate = mbs::EvaluateMeasureValue(rate_defs[k], x.q, x.v, nullptr);
+      const double predicted = std::isfinite(track.t)
+                                   ? track.angles[k] + 0.5 * (x.t - track.t) * (track.rates[k] + rate)
+                                   : track.angles[k];
+      const double angle = mbs::UnwrapAngle(values[u] + offsets[u], predicted);
+      values[u] = angle - offsets[u];
+      track.angles[k] = angle;
+      track.rates[k] = rate;
+    }
+    if (!angles.empty()) track.t = x.t;
     return 0;
   }
 
@@ -195,16 +246,13 @@ struct ModelObjectives::Impl {
             // Total derivative through the parameters computed from this one.
             for (size_t u = 0; u < e.parameters_used().size(); ++u)
               out->dp[k] += w * g.d_parameters[u] * chain[k][e.parameters_used()[u]];
-            for (int s : e.splines_used()) {
-              const std::vector<double>& dir = spline_dirs[k][s];
-              for (size_t i = 0; i < dir.size(); ++i)
-                if (dir[i] != 0)
-                  out->dp[k] += w * dir[i] * e.EvaluateSplineOrdinateGradient(in, s, static_cast<int>(i));
-            }
+            for (int s : e.splines_used())
+              if (const mbs::Spline* tangent = Tangent(k, s))
+                out->dp[k] += w * e.EvaluateSplineTangent(in, s, *tangent);
           } else {
             for (int s : e.splines_used())
               if (s == sp.spline) {
-                out->dp[k] += w * e.EvaluateSplineOrdinateGradient(in, sp.spline, sp.point);
+                out->dp[k] += w * e.EvaluateSplineTangent(in, sp.spline, *Tangent(k, s));
                 break;
               }
           }
@@ -269,6 +317,14 @@ bool ModelObjectives::has_terminal(int i) const { return impl_->model.objectives
 bool ModelObjectives::depends_on_acceleration() const { return impl_->acceleration; }
 bool ModelObjectives::depends_on_multipliers() const { return impl_->multipliers; }
 const char* ModelObjectives::last_error() const { return impl_->error.c_str(); }
+const ModelObjectives::AngleTrack& ModelObjectives::angle_track() const { return impl_->track; }
+void ModelObjectives::set_angle_track(const AngleTrack& track) {
+  if (track.angles.size() != impl_->angles.size() || track.rates.size() != impl_->angles.size())
+    throw std::invalid_argument("ModelObjectives: angle track of another model (" +
+                                std::to_string(track.angles.size()) + " angles, expected " +
+                                std::to_string(impl_->angles.size()) + ")");
+  impl_->track = track;
+}
 
 int ModelObjectives::Integrand(const ObjectivePoint& x, double* g) { return impl_->Values(false, x, g); }
 int ModelObjectives::Terminal(const ObjectivePoint& x, double* phi) { return impl_->Values(true, x, phi); }

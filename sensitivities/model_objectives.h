@@ -5,8 +5,15 @@
 // Values: each integrand / terminal expression is evaluated over t, the parameter
 // values of the system (MultibodySystem::parameters(), read at every call), the splines
 // of the model and the measures it uses:
-//   - position measures m(q) as forces see them: angles in (-pi, pi] (no unwrapping
-//     across turns, unlike the results file's rows), distances, components;
+//   - position measures m(q): distances, components, and angles counted across turns
+//     as in the results file's rows: each angle is taken at the turn nearest to the
+//     value predicted from the previous evaluation (trapezoidal rule on its rate), so
+//     a joint that turns by 2 pi ends at its start angle + 2 pi, not at its start
+//     angle. The count starts at the model file's initial state (angles in (-pi, pi])
+//     and follows the evaluations in the order they come, forward or backward in time;
+//     a backward sweep starts from where the forward run ended (angle_track /
+//     set_angle_track). Consecutive evaluations must be less than pi apart in every
+//     angle (as the results file's rows must);
 //   - velocity measures g(q).v, acceleration measures g(q).a + v^T H(q) v
 //     (mbs/measure_kinematics.h), the same values as MultibodySystem::EvaluateMeasures;
 //   - reaction measures from the multipliers (mbs/reaction.h);
@@ -58,6 +65,17 @@ class ModelObjectives final : public ObjectiveFunction {
   bool has_terminal(int i) const override;
   bool depends_on_acceleration() const override;
   bool depends_on_multipliers() const override;
+
+  // The turn count of the angle measures the objectives use (model order): the time,
+  // unwrapped angles and rates of the last evaluation (t is NaN before the first one).
+  struct AngleTrack {
+    double t = 0;
+    std::vector<double> angles, rates;
+  };
+  const AngleTrack& angle_track() const;
+  // Continues the count from a track of the same model (e.g. a forward run's end for the
+  // adjoint sweep that starts there). Throws std::invalid_argument on a size mismatch.
+  void set_angle_track(const AngleTrack& track);
 
   int Integrand(const ObjectivePoint& x, double* g) override;
   int Terminal(const ObjectivePoint& x, double* phi) override;
