@@ -51,6 +51,7 @@ ITEMS = [
     ("Published results", "sherif2019-modified-hht", "papers/sherif2019-modified-hht/run.py", []),
     ("Published results", "negrut2007-hht", "papers/negrut2007-hht/run.py", []),
     ("Published results", "andrews-testset", "papers/andrews-testset/run.py", []),
+    ("Published results", "bryson1963-state-constraint", "papers/bryson1963-state-constraint/run.py", []),
 ]
 ERROR_LEVELS = [1e-2, 1e-3, 1e-4, 1e-6, 1e-8]
 

@@ -12,7 +12,7 @@ discrete adjoint per new point, shared by the cost and every constraint). Then i
 quintic.yaml (the naive quintic-polynomial motion between the same poses, torques from
 the reactions of its motion joints) and reports the saving.
 
-Writes into this folder: torques.png and angles.png (optimal against quintic),
+Writes into the folder scipy/ (or --out): torques.png and angles.png (optimal against quintic),
 optimal_torques.csv (t and the optimal ordinates), history_scipy.csv (one row per
 optimiser iteration) and summary_scipy.json (the numbers of README.md).
 """
@@ -80,8 +80,9 @@ def main():
                     help="SLSQP ftol / trust-constr gtol and xtol (default 1e-8)")
     ap.add_argument("--gravity", type=float, default=None,
                     help="set the model's parameter g (m/s^2; default: the file's 9.81)")
-    ap.add_argument("--out", default=HERE, help="folder of the figures and files")
+    ap.add_argument("--out", default=os.path.join(HERE, "scipy"), help="folder of the figures and files")
     args = ap.parse_args()
+    os.makedirs(args.out, exist_ok=True)
 
     print("mbdae library: %s; scipy %s; numpy %s" % (mbdae.library_path, scipy.__version__,
                                                      np.__version__))
