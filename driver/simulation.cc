@@ -498,13 +498,9 @@ OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb)
   cv_.assign(nc_, 0.0);
   cq_.assign(asmb.kept_system->pattern(dae::Matrix::kConstraintDq).nnz(), 0.0);
   for (int m = 0; m < nm_; ++m) {
-    const mbs::Measure& meas = model.measures[m];
-    if (meas.type != mbs::MeasureType::kRotational || meas.quantity != mbs::Quantity::kPosition)
-      continue;
+    if (!mbs::IsAngleMeasure(model.measures[m])) continue;
     angle_measures_.push_back(m);
-    mbs::MeasureDef def = mbs::ResolveMeasure(model, m);
-    def.quantity = mbs::Quantity::kVelocity;
-    rate_defs_.push_back(def);
+    rate_defs_.push_back(mbs::AngleRate(mbs::ResolveMeasure(model, m)));
   }
   previous_rate_.assign(angle_measures_.size(), 0.0);
   for (const mbs::Measure& meas : model.measures)
@@ -550,10 +546,8 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
     const int m = angle_measures_[k];
     const double rate = mbs::EvaluateMeasureValue(rate_defs_[k], x.q.data(), x.v.data(), nullptr);
     if (!first_) {
-      const double predicted =
-          have_rates_ ? previous_[m] + 0.5 * (t - previous_t_) * (previous_rate_[k] + rate)
-                      : previous_[m];
-      raw_[m] = UnwrapAngle(raw_[m], predicted);
+      raw_[m] = have_rates_ ? mbs::UnwrapAngle(raw_[m], previous_[m], previous_rate_[k], rate, t - previous_t_)
+                            : mbs::UnwrapAngle(raw_[m], previous_[m]);
     }
     previous_rate_[k] = rate;
   }

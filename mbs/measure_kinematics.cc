@@ -304,4 +304,17 @@ double UnwrapAngle(double value, double reference) {
   return value + kTwoPi * std::round((reference - value) / kTwoPi);
 }
 
+double UnwrapAngle(double value, double previous, double previous_rate, double rate, double dt) {
+  return UnwrapAngle(value, previous + 0.5 * dt * (previous_rate + rate));
+}
+
+bool IsAngleMeasure(const Measure& measure) {
+  return measure.type == MeasureType::kRotational && measure.quantity == Quantity::kPosition;
+}
+
+MeasureDef AngleRate(MeasureDef angle) {
+  angle.quantity = Quantity::kVelocity;
+  return angle;
+}
+
 }  // namespace mbdae::mbs

@@ -93,6 +93,14 @@ void EvaluateMeasureState(const MeasureDef& def, const double* q, const double* 
 // The angle `value` plus the multiple of 2 pi that brings it nearest to `reference` (the
 // turn counting of angle measures: the results file's rows, the objectives).
 double UnwrapAngle(double value, double reference);
+// The same with the reference predicted from the previous angle by the trapezoidal rule
+// on the rate: previous + dt (previous_rate + rate) / 2 (dt may be negative: a backward
+// sweep).
+double UnwrapAngle(double value, double previous, double previous_rate, double rate, double dt);
+// Whether measure m is an angle (rotational, position level), and its rate: the same
+// measure at velocity level.
+bool IsAngleMeasure(const Measure& measure);
+MeasureDef AngleRate(MeasureDef angle);
 
 double EvaluateMeasureValue(const MeasureDef& def, const double* q, const double* v,
                             const double* a);

@@ -106,11 +106,9 @@ struct ModelObjectives::Impl {
       defs[u] = mbs::ResolveMeasure(model, u);
       if (me.quantity == mbs::Quantity::kAcceleration) acceleration = true;
       if (me.offset_initial) offsets[u] = mbs::EvaluateMeasureValue(defs[u], q0.data(), v0.data(), nullptr);
-      if (me.type == mbs::MeasureType::kRotational && me.quantity == mbs::Quantity::kPosition) {
+      if (mbs::IsAngleMeasure(me)) {
         angles.push_back(u);
-        mbs::MeasureDef rate = defs[u];
-        rate.quantity = mbs::Quantity::kVelocity;
-        rate_defs.push_back(rate);
+        rate_defs.push_back(mbs::AngleRate(defs[u]));
         track.angles.push_back(mbs::EvaluateMeasureValue(defs[u], q0.data(), v0.data(), nullptr));
         track.rates.push_back(0.0);
       }
@@ -178,10 +176,10 @@ struct ModelObjectives::Impl {
     for (size_t k = 0; k < angles.size(); ++k) {
       const int u = angles[k];
       const double rate = mbs::EvaluateMeasureValue(rate_defs[k], x.q, x.v, nullptr);
-      const double predicted = std::isfinite(track.t)
-                                   ? track.angles[k] + 0.5 * (x.t - track.t) * (track.rates[k] + rate)
-                                   : track.angles[k];
-      const double angle = mbs::UnwrapAngle(values[u] + offsets[u], predicted);
+      const double raw = values[u] + offsets[u];
+      const double angle = std::isfinite(track.t)
+                               ? mbs::UnwrapAngle(raw, track.angles[k], track.rates[k], rate, x.t - track.t)
+                               : mbs::UnwrapAngle(raw, track.angles[k]);
       values[u] = angle - offsets[u];
       track.angles[k] = angle;
       track.rates[k] = rate;
