@@ -21,6 +21,7 @@
 #include <sstream>
 #include <utility>
 
+#include "dae/hht.h"
 #include "mbs/geometry.h"
 #include "mbs/mesh.h"
 #include "mbs/kinematics.h"
@@ -141,6 +142,7 @@ class Loader {
     LoadForces(root["forces"]);
     LoadObjectives(root["objectives"]);
     LoadSimulation(root["simulation"]);
+    LoadUserLibraries();  // last: no library code runs for a refused file
     model_.load_time_values = std::move(load_time_values_);
     return std::move(model_);
   }
@@ -425,7 +427,9 @@ class Loader {
       orientation_form_ = OrientationForm::kAxisAngle;
       const Vec3 axis = Vector3(Required(node, element, "axis"), element, key + " axis");
       const double angle = LoadTimeNumber(Required(node, element, "angle"), element, key + " angle");
-      if (!(axis.norm() > 0)) Fail(node["axis"], element, "'" + key + "': the rotation axis must not be zero");
+      if (!(axis.cwiseAbs().maxCoeff() > 0)) {
+        Fail(node["axis"], element, "'" + key + "': the rotation axis must not be zero");
+      }
       return QuaternionFromAxisAngle(axis, angle);
     }
     Fail(node, element,
@@ -784,11 +788,8 @@ class Loader {
         body.inertia(0, 2) = body.inertia(2, 0) = v[4];
         body.inertia(1, 2) = body.inertia(2, 1) = v[5];
       }
-      const Eigen::SelfAdjointEigenSolver<Mat3> eig(body.inertia, Eigen::EigenvaluesOnly);
-      const double smallest = eig.eigenvalues()[0], largest = eig.eigenvalues()[2];
-      if (smallest < -1e-12 * std::max(1.0, std::abs(largest))) {
-        Fail(in, element, "inertia is not positive semi-definite (smallest eigenvalue " + Num(smallest) + ")");
-      }
+      std::string why;
+      if (!IsPhysicalInertia(body.inertia, &why)) Fail(in, element, why);
     }
     if (const YAML::Node p = node["position"]) {
       KeepExpressions keep(this, &body.expressions.position);
@@ -1138,23 +1139,9 @@ class Loader {
           if (!ps.IsSequence()) Fail(ps, element, "'parameters' must be a list of numbers or expressions, got " + Kind(ps));
           for (size_t c = 0; c < ps.size(); ++c) force.user_parameters.push_back(Parse(ps[c], element, "parameters"));
         }
-        std::filesystem::path path(force.library_path);
-        if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
-        const std::string key = path.lexically_normal().string();
-        auto it = libraries_.find(key);
-        if (it == libraries_.end()) {
-          try {
-            it = libraries_.emplace(key, std::make_shared<const UserForceLibrary>(key)).first;
-          } catch (const std::exception& e) {
-            Fail(lib, element, std::string("cannot use the library (relative paths are relative to the model file): ") + e.what());
-          }
-        }
-        force.library = it->second;
-        try {
-          force.library->Symbol(force.function, true);
-        } catch (const std::exception& e) {
-          Fail(n["function"], element, e.what());
-        }
+        if (force.library_path.empty()) Fail(lib, element, "'library' must name a shared library file");
+        // Opened by LoadUserLibraries once the whole file has been checked.
+        pending_libraries_.push_back(PendingLibrary{model_.forces.size(), lib, n["function"]});
       } else {
         force.type = type == kForce ? ForceType::kForce : ForceType::kTorque;
         CheckKeys(n, element, {"name", "type", "i", "j", "frame", "value"});
@@ -1172,6 +1159,41 @@ class Loader {
       force.i = Marker(Required(n, element, "i"), element, "i");
       force.j = n["j"] ? Marker(n["j"], element, "j") : 0;
       model_.forces.push_back(force);
+    }
+  }
+
+  // The libraries of `user` forces, opened (dlopen runs the library's initialisers) only
+  // after everything else in the file has been checked: a refused model runs no library
+  // code. A relative path is relative to the model file's folder, and is given to dlopen
+  // with a '/' ("./libx.so" for a model in the current folder), which would otherwise
+  // search the system's library path.
+  void LoadUserLibraries() {
+    for (const PendingLibrary& p : pending_libraries_) {
+      Force& force = model_.forces[p.force];
+      const std::string element = "force '" + force.name + "'";
+      std::filesystem::path path(force.library_path);
+      if (path.is_relative()) {
+        std::filesystem::path folder = std::filesystem::path(file_).parent_path();
+        if (folder.empty()) folder = ".";
+        path = folder / path;
+      }
+      std::string key = path.lexically_normal().string();
+      if (key.find('/') == std::string::npos) key = "./" + key;
+      auto it = libraries_.find(key);
+      if (it == libraries_.end()) {
+        try {
+          it = libraries_.emplace(key, std::make_shared<const UserForceLibrary>(key)).first;
+        } catch (const std::exception& e) {
+          Fail(p.library, element,
+               std::string("cannot use the library (relative paths are relative to the model file): ") + e.what());
+        }
+      }
+      force.library = it->second;
+      try {
+        force.library->Symbol(force.function, true);
+      } catch (const std::exception& e) {
+        Fail(p.function, element, e.what());
+      }
     }
   }
 
@@ -1256,7 +1278,8 @@ class Loader {
     if (!node) return;
     const std::string element = "simulation";
     SimulationSettings& s = model_.simulation;
-    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida"}, "simulation");
+    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida", "output_accelerations"},
+              "simulation");
     auto positive = [&](const YAML::Node& n, const std::string& key) {
       const double x = LoadTimeNumber(n, element, key);
       if (!(x > 0)) Fail(n, element, key + " must be > 0, got " + Num(x));
@@ -1267,8 +1290,12 @@ class Loader {
     if (const YAML::Node n = node["integrator"]) {
       s.integrator = Enum<IntegratorKind>(n, element, "integrator", {{"hht", IntegratorKind::kHht}, {"ida", IntegratorKind::kIda}});
     }
+    if (const YAML::Node n = node["output_accelerations"]) {
+      s.output_accelerations = Enum<std::string>(n, element, "output_accelerations",
+                                                 {{"solved", "solved"}, {"integrator", "integrator"}});
+    }
     if (const YAML::Node h = node["hht"]) {
-      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form"}, "hht");
+      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start"}, "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
         if (!(s.hht_alpha >= -1.0 / 3.0 - 1e-15 && s.hht_alpha <= 0)) {
@@ -1283,17 +1310,43 @@ class Loader {
         s.hht_form = Enum<std::string>(n, element, "form",
                                        {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});
       }
+      if (const YAML::Node n = h["start"]) {
+        s.hht_start = Enum<std::string>(n, element, "start",
+                                        {{"perturbed", "perturbed"}, {"consistent", "consistent"}});
+      }
     }
     if (const YAML::Node i = node["ida"]) {
       CheckKeys(i, element, {"rtol", "atol"}, "ida");
       if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
       if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
     }
+    // Settings that are each > 0 but cannot be used together or by the integrator.
+    const double rows = s.t_end / s.output_step;
+    if (!(rows <= kMaxOutputRows)) {
+      const YAML::Node at = node["output_step"] ? node["output_step"] : node["t_end"];
+      Fail(at, element, "t_end " + Num(s.t_end) + " with output_step " + Num(s.output_step) + " gives " +
+                            Num(std::ceil(rows)) + " output rows; at most " + Num(kMaxOutputRows) +
+                            " (make output_step larger)");
+    }
+    const double min_step = dae::HhtOptions().min_step;
+    if (const YAML::Node h = node["hht"]) {
+      if (const YAML::Node n = h["step"]; n && !(s.hht_step >= min_step)) {
+        Fail(n, element, "hht step " + Num(s.hht_step) + " is smaller than the smallest step of the HHT integrator, " +
+                             Num(min_step));
+      }
+    }
   }
 
   std::string file_;
   // User-force libraries by normalised path: each loaded once and shared.
   std::map<std::string, std::shared_ptr<const UserForceLibrary>> libraries_;
+  // `user` forces whose library is still to be opened: Model::forces index, the
+  // `library` and `function` nodes.
+  struct PendingLibrary {
+    size_t force;
+    YAML::Node library, function;
+  };
+  std::vector<PendingLibrary> pending_libraries_;
   const LoadOptions& options_;
   Model model_;
   SymbolTable symbols_;

@@ -195,6 +195,10 @@ struct Objective {
 
 enum class IntegratorKind { kHht, kIda };
 
+// The most output rows a run may have (t_end / output_step); the loaders refuse more
+// with the file and line, the driver (driver/simulation.h) settings from the command line.
+constexpr double kMaxOutputRows = 1e8;
+
 struct SimulationSettings {
   double t_end = 1.0;
   double output_step = 1e-2;
@@ -207,8 +211,15 @@ struct SimulationSettings {
   // The residual of the step: "equilibrium" (generalized-alpha with HHT's parameters) or
   // "negrut" (Negrut et al. 2007); see docs/hht.md.
   std::string hht_form = "equilibrium";
+  // The start of the equilibrium form: "perturbed" (abar_0 = a(t_0 + alpha h) to second
+  // order, no start-up oscillation of the multipliers) or "consistent" (abar_0 = a_0).
+  std::string hht_start = "perturbed";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
+  // a and lambda of the output rows: "solved" (the acceleration-level equations
+  // [M C_q^T; C_q 0] [a; lambda] = [Q; gamma] at the row's (t, q, v)) or "integrator"
+  // (the integrator's own values); docs/model-format.md, "Simulation".
+  std::string output_accelerations = "solved";
 };
 
 struct Model {
@@ -241,6 +252,21 @@ struct Model {
 
   std::vector<double> parameter_values() const;
 };
+
+// Whether J (symmetric, kg m^2) can be the inertia tensor of a rigid body about its centre
+// of mass; if not, *error (if not null) gets the reason with the numbers. The rules
+// (docs/model-format.md, "Inertia"), on the eigenvalues I1 <= I2 <= I3 (the principal
+// moments):
+//   - positive semi-definite: I1 >= -1e-12 max(1, |I3|);
+//   - the triangle inequality I3 <= I1 + I2, which every mass distribution satisfies
+//     (I1 + I2 - I3 = 2 * integral of the squared distance along the third axis), with
+//     the tolerance I3 - (I1 + I2) <= kInertiaTriangleRelativeTolerance I3 +
+//     kInertiaTriangleAbsoluteTolerance: slender rods (I1 = 0, I2 = I3) and flat plates
+//     (I3 = I1 + I2) written with rounded values, and point masses whose moments are
+//     round-off, pass.
+constexpr double kInertiaTriangleRelativeTolerance = 1e-3;
+constexpr double kInertiaTriangleAbsoluteTolerance = 1e-12;  // kg m^2
+bool IsPhysicalInertia(const Mat3& J, std::string* error);
 
 // After parameter values changed (Model::parameters[k].value): re-evaluates the points of
 // every inline spline that depends on a parameter and sets them (Spline::SetPoints);

@@ -289,10 +289,11 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   s << "  t_end: " << Num(sim.t_end) << "\n";
   s << "  output_step: " << Num(sim.output_step) << "\n";
   s << "  integrator: " << (sim.integrator == IntegratorKind::kHht ? "hht" : "ida") << "\n";
+  s << "  output_accelerations: " << sim.output_accelerations << "\n";
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
     << ", modified: " << (sim.hht_modified ? "true" : "false") << ", form: " << sim.hht_form
-    << "}\n";
+    << ", start: " << sim.hht_start << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol) << "}\n";
   return s.str();
 }
