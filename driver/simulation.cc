@@ -36,6 +36,10 @@ std::string Join(const std::vector<std::string>& names, const char* sep = ", ") 
   return out;
 }
 
+// Thrown by the stop check (SimulationOptions::stop) out of the integrator's step
+// observer; not a std::exception, so that nothing between takes it for a failure.
+struct StopRequest {};
+
 }  // namespace
 
 dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
@@ -47,6 +51,8 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   o.modified = s.hht_modified;
   if (!dae::ParseHhtForm(s.hht_form, &o.form))
     throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
+  if (!dae::ParseHhtStart(s.hht_start, &o.start))
+    throw InputError("hht settings: start must be perturbed or consistent, got '" + s.hht_start + "'");
   return o;
 }
 
@@ -93,6 +99,8 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_adaptive) s.hht_adaptive = *o.hht_adaptive;
   if (o.hht_modified) s.hht_modified = *o.hht_modified;
   if (o.hht_form) s.hht_form = *o.hht_form;
+  if (o.hht_start) s.hht_start = *o.hht_start;
+  if (o.output_accelerations) s.output_accelerations = *o.output_accelerations;
   if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
   if (!(s.t_end > 0) || !std::isfinite(s.t_end))
@@ -101,6 +109,9 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
     throw InputError("simulation setting output_step must be > 0, got " + Num(s.output_step));
   if (s.t_end / s.output_step > 1e8)
     throw InputError("simulation settings t_end / output_step give more than 1e8 output rows");
+  if (s.output_accelerations != "solved" && s.output_accelerations != "integrator")
+    throw InputError("simulation setting output_accelerations must be solved or integrator, got '" +
+                     s.output_accelerations + "'");
   std::string error;
   // Both integrators' settings are checked, the unused one too: a bad value given on
   // the command line is a mistake whichever integrator runs.
@@ -371,7 +382,10 @@ std::string SimulationSummary::FullReport() const {
   s << "integrator:            " << integrator;
   if (!integrator_detail.empty()) s << " (" << integrator_detail << ")";
   s << "\nstatus:                "
-    << (status == Status::kDone ? "done" : "failed: " + failure_reason) << ", t = "
+    << (status == Status::kDone          ? std::string("done")
+        : status == Status::kInterrupted ? std::string("interrupted")
+                                         : "failed: " + failure_reason)
+    << ", t = "
     << Num(t_reached) << " of " << Num(t_end) << "\n";
   s << "steps:                 " << counters.steps_accepted << " accepted, "
     << counters.steps_rejected << " rejected\n";
@@ -382,6 +396,9 @@ std::string SimulationSummary::FullReport() const {
   s << "solver CPU time:       " << Num(solver_cpu_time) << " s\n";
   s << "max violation:         position " << Num(max_position_violation) << ", velocity "
     << Num(max_velocity_violation) << "\n";
+  if (rows_with_integrator_accelerations > 0)
+    s << "rows with the integrator's a, lambda (acceleration-level system not solved): "
+      << rows_with_integrator_accelerations << "\n";
   s << "redundant constraints: " << redundant_constraints.size();
   if (!redundant_constraints.empty()) s << " (" << Join(redundant_constraints) << ")";
   s << "\n";
@@ -424,6 +441,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
   file.SetAttribute("integrator_detail", run.integrator_detail);
   file.SetAttribute("t_end", settings.t_end);
   file.SetAttribute("output_step", settings.output_step);
+  file.SetAttribute("output_accelerations", settings.output_accelerations);
   if (settings.integrator == mbs::IntegratorKind::kHht) {
     file.SetAttribute("hht_alpha", settings.hht_alpha);
     file.SetAttribute("hht_step", settings.hht_step);
@@ -431,6 +449,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_tolerance", settings.hht_tolerance);
     file.SetAttribute("hht_modified", settings.hht_modified ? 1 : 0);
     file.SetAttribute("hht_form", settings.hht_form);
+    file.SetAttribute("hht_start", settings.hht_start);
   } else {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
@@ -447,9 +466,10 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
 
 void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summary) {
   const bool ok = summary.status == SimulationSummary::Status::kDone;
-  file.SetAttribute("status", ok ? "done" : "failed");
+  const bool interrupted = summary.status == SimulationSummary::Status::kInterrupted;
+  file.SetAttribute("status", ok ? "done" : interrupted ? "interrupted" : "failed");
   file.SetAttribute("t_reached", summary.t_reached);
-  if (!ok) file.SetAttribute("failure_reason", summary.failure_reason);
+  if (!ok && !interrupted) file.SetAttribute("failure_reason", summary.failure_reason);
   file.SetAttribute("steps_accepted", summary.counters.steps_accepted);
   file.SetAttribute("steps_rejected", summary.counters.steps_rejected);
   file.SetAttribute("newton_iterations", summary.counters.newton_iterations);
@@ -460,6 +480,7 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
   file.SetAttribute("solver_cpu_time", summary.solver_cpu_time);
   file.SetAttribute("max_position_violation", summary.max_position_violation);
   file.SetAttribute("max_velocity_violation", summary.max_velocity_violation);
+  file.SetAttribute("rows_with_integrator_accelerations", summary.rows_with_integrator_accelerations);
 }
 
 std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
@@ -475,7 +496,18 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
   return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
 }
 
+std::vector<std::string> EffortJointNames(const mbs::Model& model) {
+  std::vector<std::string> names;
+  for (const mbs::Joint& j : model.joints)
+    if (j.type == mbs::JointType::kMotion) names.push_back(j.name);
+  return names;
+}
+
 OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb)
+    : OutputRowBuilder(model, asmb, model.simulation) {}
+
+OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb,
+                                   const mbs::SimulationSettings& settings)
     : model_(model), asmb_(asmb) {
   assert(asmb.system && asmb.kept_system);
   nq_ = asmb.system->num_coordinates();
@@ -504,10 +536,25 @@ OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb)
   }
   previous_rate_.assign(angle_measures_.size(), 0.0);
   for (const mbs::Measure& meas : model.measures)
-    if (meas.type == mbs::MeasureType::kReaction) {
-      reactions_ = std::make_shared<mbs::ReactionMeasures>(model, asmb.system->parameters());
-      break;
-    }
+    if (meas.type == mbs::MeasureType::kReaction) has_reaction_measures_ = true;
+  bool driven = false;
+  for (const mbs::Joint& j : model.joints)
+    if (j.type == mbs::JointType::kMotion || j.type == mbs::JointType::kGear) driven = true;
+  if (has_reaction_measures_ || driven)
+    reactions_ = std::make_shared<mbs::ReactionMeasures>(model, asmb.system->parameters());
+  for (int j = 0; j < nj_; ++j) {
+    if (model.joints[j].type != mbs::JointType::kMotion) continue;
+    effort_joints_.push_back(j);
+    int row = -1;
+    for (int e = 0; e < nc_full_; ++e)
+      if (asmb.system->constraint_joint()[e] == j) row = e;
+    effort_rows_.push_back(row);
+  }
+  efforts_.assign(effort_joints_.size(), 0.0);
+  a_.assign(nq_, 0.0);
+  lambda_.assign(nc_, 0.0);
+  if (settings.output_accelerations == "solved")
+    acceleration_ = std::make_unique<dae::AccelerationSolver>(*asmb.kept_system);
 }
 
 void OutputRowBuilder::ContinueAfter(const double* measures) {
@@ -521,8 +568,14 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   mbs::MultibodySystem& sys = *asmb_.system;
   dae::MechanicalSystem& kept = *asmb_.kept_system;
   const double t = x.t;
+  // The row's a and lambda: solved from (t, q, v), or the integrator's.
+  if (!acceleration_ || acceleration_->Solve(t, x.q.data(), x.v.data(), a_.data(), lambda_.data()) != 0) {
+    if (acceleration_) ++fallbacks_;
+    std::copy(x.a.begin(), x.a.end(), a_.begin());
+    std::copy(x.lambda.begin(), x.lambda.end(), lambda_.begin());
+  }
   std::fill(lambda_full_.begin(), lambda_full_.end(), 0.0);
-  for (int k = 0; k < nc_; ++k) lambda_full_[asmb_.kept[k]] = x.lambda[k];
+  for (int k = 0; k < nc_; ++k) lambda_full_[asmb_.kept[k]] = lambda_[k];
   for (int b = 0; b < nb_; ++b) {
     const double* q = x.q.data() + 7 * b;
     const double* v = x.v.data() + 7 * b;
@@ -532,8 +585,8 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
     std::copy(v, v + 3, out + 7);
     AngularVelocityWorld(q + 3, v + 3, out + 10);
   }
-  if (nm_ > 0) sys.EvaluateMeasures(t, x.q.data(), x.v.data(), x.a.data(), raw_.data());
-  if (reactions_) {
+  if (nm_ > 0) sys.EvaluateMeasures(t, x.q.data(), x.v.data(), a_.data(), raw_.data());
+  if (has_reaction_measures_) {
     reactions_->parameters() = sys.parameters();
     if (reactions_->Evaluate(t, x.q.data(), lambda_full_.data(), raw_.data()) != 0)
       for (int m : reactions_->measures()) raw_[m] = std::numeric_limits<double>::quiet_NaN();
@@ -560,9 +613,18 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   }
   previous_t_ = t;
   have_rates_ = true;
-  for (int j = 0; j < nj_; ++j)
-    sys.JointReaction(j, t, x.q.data(), lambda_full_.data(), joints_.data() + 6 * j,
-                      joints_.data() + 6 * j + 3);
+  for (int j = 0; j < nj_; ++j) {
+    double* f = joints_.data() + 6 * j;
+    const mbs::JointType type = model_.joints[j].type;
+    if (type == mbs::JointType::kMotion || type == mbs::JointType::kGear) {
+      if (reactions_->JointWrench(j, t, x.q.data(), lambda_full_.data(), f, f + 3) != 0)
+        std::fill(f, f + 6, std::numeric_limits<double>::quiet_NaN());
+    } else {
+      sys.JointReaction(j, t, x.q.data(), lambda_full_.data(), f, f + 3);
+    }
+  }
+  for (size_t k = 0; k < effort_joints_.size(); ++k)
+    efforts_[k] = effort_rows_[k] >= 0 ? -lambda_full_[effort_rows_[k]] : 0.0;
   for (int f = 0; f < nf_; ++f)
     sys.ForceAction(f, t, x.q.data(), x.v.data(), forces_.data() + 6 * f,
                     forces_.data() + 6 * f + 3);
@@ -572,7 +634,7 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
     in.t = t;
     in.q = x.q.data();
     in.v = x.v.data();
-    in.a = x.a.data();
+    in.a = a_.data();
     dae::EvalOutput out;
     out.constraint = c_.data();
     out.constraint_dt = cdt_.data();
@@ -594,11 +656,12 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   row_.t = t;
   row_.q = x.q.data();
   row_.v = x.v.data();
-  row_.a = x.a.data();
-  row_.lambda = x.lambda.data();
+  row_.a = a_.data();
+  row_.lambda = lambda_.data();
   row_.body_data = body_.data();
   row_.measures = measures_.data();
   row_.joint_data = joints_.data();
+  row_.effort_data = efforts_.data();
   row_.force_data = forces_.data();
   row_.kinetic_energy = sys.KineticEnergy(x.q.data(), x.v.data());
   row_.potential_energy = sys.PotentialEnergy(t, x.q.data());
@@ -643,11 +706,21 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
       summary.objectives_note = std::string("not computed: the integrator has no quadrature (") + e.what() + ")";
     }
   }
+  if (options.stop) {
+    try {
+      integrator->SetStepObserver([&options](const dae::State&, double h) {
+        if (h > 0 && options.stop()) throw StopRequest{};
+      });
+    } catch (const std::logic_error&) {
+      // An integrator that does not report its steps stops at the next output time.
+    }
+  }
   if (options.prepare) options.prepare(*integrator);
   integrator->Initialize(asmb.x0);
 
-  const RunDescription run =
+  RunDescription run =
       DescribeRun(model, asmb, settings, options.model_path, summary.integrator_detail);
+  run.layout.efforts = EffortJointNames(model);
   // Without a results path the rows are computed (violations, progress) but not stored.
   std::unique_ptr<io::ResultsFile> results;
   if (!options.results_path.empty()) {
@@ -656,7 +729,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
     WriteRunAttributes(*results, run);
   }
 
-  OutputRowBuilder rows(model, asmb);
+  OutputRowBuilder rows(model, asmb, settings);
   long rows_computed = 0;
   auto write_row = [&](const dae::State& x) {
     const io::ResultsRow& row = rows.Compute(x);
@@ -671,11 +744,12 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   };
 
   const std::vector<double> times = OutputTimes(settings.t_end, settings.output_step);
-  bool ok = true;
+  bool ok = true, interrupted = false;
   std::string exception_reason;
   try {
     write_row(integrator->state());
     for (size_t k = 1; k < times.size(); ++k) {
+      if (options.stop && options.stop()) throw StopRequest{};
       const std::clock_t cpu_start = std::clock();
       const bool advanced = integrator->AdvanceTo(times[k]);
       summary.solver_cpu_time += double(std::clock() - cpu_start) / CLOCKS_PER_SEC;
@@ -687,6 +761,9 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
       x.t = times[k];  // exactly the output time (guards against round-off in the integrator)
       write_row(x);
     }
+  } catch (const StopRequest&) {
+    ok = false;
+    interrupted = true;
   } catch (const std::exception& e) {
     // An exception from the integration (e.g. a linear solver error) is a failure of
     // the solver like any other: the rows written so far stay, with the reason.
@@ -695,9 +772,14 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   }
 
   summary.counters = integrator->summary();
+  summary.rows_with_integrator_accelerations = rows.fallbacks();
   summary.rows = results ? results->rows() : rows_computed;
   summary.status = ok ? SimulationSummary::Status::kDone : SimulationSummary::Status::kFailed;
-  if (!ok) {
+  if (interrupted) {
+    summary.status = SimulationSummary::Status::kInterrupted;
+    summary.t_reached = integrator->state().t;
+    summary.failure_reason = "interrupted";
+  } else if (!ok) {
     summary.t_reached = integrator->summary().t_reached;
     summary.failure_reason = !exception_reason.empty() ? exception_reason
                              : integrator->summary().message.empty()

@@ -46,11 +46,14 @@ struct SettingsOverrides {
   std::optional<double> hht_alpha, hht_step, hht_tolerance;
   std::optional<bool> hht_adaptive, hht_modified;
   std::optional<std::string> hht_form;
+  std::optional<std::string> hht_start;             // "perturbed" | "consistent"
+  std::optional<std::string> output_accelerations;  // "solved" | "integrator"
   std::optional<double> ida_rtol, ida_atol;
 };
 
 // The model's settings with the overrides applied, validated (t_end > 0, 0 < output_step,
-// and HhtOptions::IsValid / IdaOptions::IsValid of the chosen integrator). Throws
+// output_accelerations solved | integrator, hht_start perturbed | consistent, and
+// HhtOptions::IsValid / IdaOptions::IsValid of the chosen integrator). Throws
 // InputError naming the setting.
 mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
                                         const SettingsOverrides& overrides);
@@ -58,7 +61,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
 const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida"
 
 // The integrators' options of the settings. HhtOptionsOf throws InputError for an
-// unknown form.
+// unknown form or start.
 dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& settings);
 dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& settings);
 
@@ -121,10 +124,14 @@ struct SimulationOptions {
   std::function<void(dae::HhtOptions&)> adjust_hht;
   // Called with the integrator before it is initialised (e.g. to set a step observer).
   std::function<void(dae::Integrator&)> prepare;
+  // Asked before every output time and after every step the integrator reports (through
+  // a step observer set before `prepare`, which may replace it): true ends the run there
+  // with status kInterrupted, the rows so far kept (e.g. a flag a signal handler sets).
+  std::function<bool()> stop;
 };
 
 struct SimulationSummary {
-  enum class Status { kDone, kFailed };
+  enum class Status { kDone, kFailed, kInterrupted };
   Status status = Status::kFailed;
   std::string integrator;           // "hht" | "ida"
   std::string integrator_detail;    // Integrator::name()
@@ -139,6 +146,9 @@ struct SimulationSummary {
   double solver_cpu_time = 0;
   double max_position_violation = 0;  // max |C| of the kept system over the rows
   double max_velocity_violation = 0;  // max |C_q v + C_t| over the rows
+  // Rows whose a and lambda are the integrator's although output_accelerations is
+  // "solved" (the acceleration-level system was singular or could not be evaluated).
+  long rows_with_integrator_accelerations = 0;
   std::vector<std::string> redundant_constraints;
   std::string results_path;
   // The model's objectives (Model::objectives) of a run that reached t_end: integral by
@@ -198,9 +208,26 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
 // them; offset_initial taken from the first row), joint reactions,
 // force element actions, energies and constraint violations. Workspaces are allocated
 // once; Compute does not allocate. References `model` and `asmb`, which must outlive it.
+//
+// a and lambda of the row (settings.output_accelerations): "solved" solves the
+// acceleration-level equations [M C_q^T; C_q 0] [a; lambda] = [Q; gamma] of the kept
+// equations at the row's (t, q, v) (one KLU factorisation per row), so that they, the
+// joint reactions, efforts, reaction measures and acceleration measures of the row are
+// functions of (t, q, v) alone, free of the integrator's error in a and lambda (IDA
+// leaves lambda out of its error test; HHT's lambda of the index-3 form); where that
+// system cannot be solved the integrator's values are used and the row is counted
+// (fallbacks()). "integrator": the integrator's own a and lambda.
+//
+// Joint reactions: JointReaction for joints with markers, ReactionMeasures::JointWrench
+// (the constraint force of the equation on the body of the driven measure's marker i)
+// for motion and gear joints. Efforts (effort_joints()): for each motion joint
+// -lambda of its equation, the generalised force along the driven measure (a torque
+// about the axis of an angle, a force along a translation).
 class OutputRowBuilder {
  public:
+  // The row settings of model.simulation.
   OutputRowBuilder(const mbs::Model& model, Assembly& asmb);
+  OutputRowBuilder(const mbs::Model& model, Assembly& asmb, const mbs::SimulationSettings& settings);
 
   // The row at x (a state of asmb.kept_system, lambda of the kept equations). The pointers
   // of the returned row point into x and into this object: valid until the next call.
@@ -216,6 +243,9 @@ class OutputRowBuilder {
   int num_measures() const { return nm_; }
   int num_joints() const { return nj_; }
   int num_forces() const { return nf_; }
+  // The joints with an effort (motion joints, Model::joints indices), in row order.
+  const std::vector<int>& effort_joints() const { return effort_joints_; }
+  long fallbacks() const { return fallbacks_; }
 
  private:
   const mbs::Model& model_;
@@ -232,9 +262,20 @@ class OutputRowBuilder {
   bool have_rates_ = false;  // previous_rate_ and previous_t_ belong to the previous row
   bool first_ = true;
   io::ResultsRow row_;
-  // Reaction measures (mbs/reaction.h), if the model has any.
+  // Reaction measures (mbs/reaction.h), if the model has any reaction measure or a
+  // motion or gear joint.
   std::shared_ptr<mbs::ReactionMeasures> reactions_;
+  bool has_reaction_measures_ = false;
+  // Solved a and lambda (output_accelerations "solved"), the row's a and lambda.
+  std::unique_ptr<dae::AccelerationSolver> acceleration_;
+  std::vector<double> a_, lambda_;
+  long fallbacks_ = 0;
+  std::vector<int> effort_joints_, effort_rows_;  // joint, its equation in the full set
+  std::vector<double> efforts_;
 };
+
+// Names of the joints that have an effort dataset (motion joints), in model order.
+std::vector<std::string> EffortJointNames(const mbs::Model& model);
 
 // Integrates from asmb.x0 to settings.t_end, writing one row per output time to a new
 // results file (created here; throws std::runtime_error if it cannot be). Integrator
