@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +18,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "dae/hht.h"
 #include "mbs/kinematics.h"
 
 namespace mbdae::mbs {
@@ -43,6 +45,13 @@ std::string Num(double x) {
     if (digits == 17 || std::strtod(s.str().c_str(), nullptr) == x) return s.str();
   }
   return "0";
+}
+
+// A large count in three significant digits: 1e+12.
+std::string Rounded(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", v);
+  return text;
 }
 
 std::string Join(const std::vector<std::string>& names) {
@@ -633,6 +642,8 @@ class FreeDynReader {
     const Vec3 principal = Vector(inertia, element);
     if (principal.minCoeff() < 0) Fail(inertia, element, "principal moments of inertia must be >= 0");
     body.inertia = principal.asDiagonal();
+    std::string why;
+    if (!IsPhysicalInertia(body.inertia, &why)) Fail(inertia, element, why);
     body.position = Vector(Required(b, "LocationCenterMass"), element);
     const Mat3 A = Axes(b, "OrientationPAI");
     body.orientation = QuaternionFromMatrix(A);
@@ -929,6 +940,16 @@ class FreeDynReader {
     if (const Entry* e = Find(b, "OutputTimeStepSize")) {
       s.output_step = Number(*e, element);
       if (!(s.output_step > 0)) Fail(*e, element, "must be > 0, got " + e->value);
+      output_step_entry_ = e;
+    }
+    const double rows = s.t_end / s.output_step;
+    if (!(rows <= kMaxOutputRows)) {
+      const Entry* e = output_step_entry_ ? output_step_entry_ : Find(b, "SimulationTimeEnd");
+      const std::string what = "SimulationTimeEnd " + Num(s.t_end) + " with OutputTimeStepSize " +
+                               Num(s.output_step) + " gives " + Rounded(rows) + " output rows; at most " +
+                               Rounded(kMaxOutputRows) + " (make OutputTimeStepSize larger)";
+      if (e) Fail(*e, element, what);
+      Fail(b, what);
     }
   }
 
@@ -960,6 +981,16 @@ class FreeDynReader {
       const double h = Number(*e, element);
       if (!(h > 0)) Fail(*e, element, "must be > 0, got " + e->value);
       s.hht_step = std::min(h, s.output_step);
+    }
+    const double min_step = dae::HhtOptions().min_step;
+    if (!(s.hht_step >= min_step)) {
+      const Entry* e = Find(b, "SolverMaxTimeStep");
+      if (!e || s.output_step < Number(*e, element)) e = output_step_entry_;
+      const std::string what = "the HHT step " + Num(s.hht_step) +
+                               " (the smaller of SolverMaxTimeStep and OutputTimeStepSize) is smaller than the "
+                               "smallest step of the HHT integrator, " + Num(min_step);
+      if (e) Fail(*e, element, what);
+      Fail(b, what);
     }
     s.hht_modified = YesNo(b, "ModifyNewmark", s.hht_modified);
   }
@@ -996,6 +1027,7 @@ class FreeDynReader {
   std::vector<Marker> pending_;         // markers, names without the body part
   bool have_gravity_ = false, have_simulation_ = false, have_solver_ = false;
   const Block* solver_ = nullptr;
+  const Entry* output_step_entry_ = nullptr;  // OutputTimeStepSize of the Simulation block
 };
 
 }  // namespace

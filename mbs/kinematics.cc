@@ -60,17 +60,20 @@ Quat QuaternionFromMatrix(const Mat3& A) {
 }
 
 Quat QuaternionFromAxisAngle(const Vec3& axis, double angle) {
-  const double n = axis.norm();
-  if (!(n > 0)) {
-    if (angle == 0) return Quat(1, 0, 0, 0);
+  // The axis is first divided by its largest component, so that its length neither
+  // overflows ([1e200, 1e200, 0]) nor underflows ([1e-200, 0, 0]).
+  const double scale = axis.cwiseAbs().maxCoeff();
+  if (!(scale > 0) || !std::isfinite(scale)) {
+    if (scale == 0 && angle == 0) return Quat(1, 0, 0, 0);
     std::ostringstream msg;
-    msg << "rotation axis [" << axis.x() << ", " << axis.y() << ", " << axis.z()
-        << "] has zero length";
+    msg << "rotation axis [" << axis.x() << ", " << axis.y() << ", " << axis.z() << "] "
+        << (scale == 0 ? "has zero length" : "is not finite");
     throw std::invalid_argument(msg.str());
   }
+  const Vec3 unit = (axis / scale).normalized();
   Quat e;
   e[0] = std::cos(angle / 2);
-  e.tail<3>() = std::sin(angle / 2) / n * axis;
+  e.tail<3>() = std::sin(angle / 2) * unit;
   return e;
 }
 

@@ -14,6 +14,10 @@ Mat34 EMatrix(const Quat& e);  // [-e_v, skew(e_v) + e0 I]
 inline Mat34 GMatrix(const Quat& e);  // [-e_v, -skew(e_v) + e0 I]
 inline Mat3 RotationMatrix(const Quat& e);  // body to world
 Quat QuaternionFromMatrix(const Mat3& A);
+// Rotation by `angle` about `axis` (any non-zero finite length: it is divided by its
+// largest component before it is normalised, so [1e200, 1e200, 0] and [1e-200, 0, 0] are
+// valid axes). A zero axis with angle 0 gives the identity; a zero axis with another
+// angle, or a non-finite one, throws std::invalid_argument.
 Quat QuaternionFromAxisAngle(const Vec3& axis, double angle);
 
 // Inline: evaluated per body and per joint in every system evaluation.

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -45,6 +46,13 @@ std::string Num(double v) {
   std::ostringstream s;
   s << std::setprecision(10) << v;
   return s.str();
+}
+
+// A large count in three significant digits: 1e+12.
+std::string Rounded(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", v);
+  return text;
 }
 
 std::string Join(const std::vector<std::string>& names) {
@@ -1325,7 +1333,7 @@ class Loader {
     if (!(rows <= kMaxOutputRows)) {
       const YAML::Node at = node["output_step"] ? node["output_step"] : node["t_end"];
       Fail(at, element, "t_end " + Num(s.t_end) + " with output_step " + Num(s.output_step) + " gives " +
-                            Num(std::ceil(rows)) + " output rows; at most " + Num(kMaxOutputRows) +
+                            Rounded(rows) + " output rows; at most " + Rounded(kMaxOutputRows) +
                             " (make output_step larger)");
     }
     const double min_step = dae::HhtOptions().min_step;

@@ -1,6 +1,11 @@
 #include "mbs/model.h"
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cassert>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
 #include <stdexcept>
 
 namespace mbdae::mbs {
@@ -35,6 +40,34 @@ bool SplineDef::depends_on_parameters() const {
     for (const Expression& e : *list)
       if (!e.parameters_used().empty()) return true;
   return false;
+}
+
+bool IsPhysicalInertia(const Mat3& J, std::string* error) {
+  auto fail = [error](const std::string& why) {
+    if (error) *error = why;
+    return false;
+  };
+  auto num = [](double v) {
+    std::ostringstream s;
+    s << std::setprecision(10) << v;
+    return s.str();
+  };
+  if (!J.allFinite()) return fail("inertia is not finite");
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(J, Eigen::EigenvaluesOnly);
+  const Vec3 I = eig.eigenvalues();  // ascending
+  if (I[0] < -1e-12 * std::max(1.0, std::abs(I[2]))) {
+    return fail("inertia is not positive semi-definite (smallest eigenvalue " + num(I[0]) + ")");
+  }
+  // Clamp round-off negatives of a positive semi-definite tensor to zero.
+  const double i1 = std::max(I[0], 0.0), i2 = std::max(I[1], 0.0), i3 = std::max(I[2], 0.0);
+  const double excess = i3 - (i1 + i2);
+  if (excess > kInertiaTriangleRelativeTolerance * i3 + kInertiaTriangleAbsoluteTolerance) {
+    return fail("inertia violates the triangle inequality: principal moments " + num(i1) + ", " +
+                num(i2) + ", " + num(i3) + "; the largest exceeds the sum of the other two (" +
+                num(i1 + i2) + ") by " + num(excess) +
+                ", and no rigid body has such an inertia (allowed: 1e-3 of the largest + 1e-12 kg m^2)");
+  }
+  return true;
 }
 
 void ReevaluateSplinePoints(Model* model) {

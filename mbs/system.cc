@@ -32,12 +32,14 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <iomanip>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
 #include "mbs/bushing.h"
 #include "mbs/kinematics.h"
+#include "mbs/loader.h"
 #include "mbs/measure_kinematics.h"
 #include "mbs/user_force.h"
 
@@ -698,6 +700,31 @@ struct MultibodySystem::Impl {
     return fv;
   }
 
+  // "" if the values of element k are all finite, else which one is not: "'value'
+  // entry 2 ('1/x') is inf" (the first such, in the order stiffness, damping,
+  // free_length, preload, value entries 1 to 3).
+  std::string NonFiniteForceValue(int k, const ForceValues& fv) const {
+    const Force& f = model.forces[k];
+    static const char* const kKeys[4] = {"stiffness", "damping", "free_length", "preload"};
+    const double x[7] = {fv.k, fv.c, fv.l0, fv.preload, fv.value[0], fv.value[1], fv.value[2]};
+    for (int e = FirstExpression(f); e < EndExpression(f); ++e) {
+      if (std::isfinite(x[e])) continue;
+      std::ostringstream s;
+      s << std::setprecision(10);
+      if (e < 4)
+        s << "'" << kKeys[e] << "'";
+      else
+        s << "'value' entry " << e - 3;
+      s << " ('" << ForceExpression(f, e).text() << "') is ";
+      if (std::isnan(x[e]))
+        s << "nan";  // whatever its sign bit
+      else
+        s << x[e];
+      return s.str();
+    }
+    return "";
+  }
+
   // The force (or torque) vector of element k on marker i, world axes, and its
   // derivatives with respect to the local coordinates and rates (skipped when dfdq is
   // null; then dfdv must be null too). Returns false if a
@@ -965,6 +992,48 @@ void MultibodySystem::Impl::Setup() {
     fx.jac.resize(fx.measures.size());
     fx.d_expr.resize(fx.measures.size());
   }
+  measure_offsets.assign(nmeas, 0.0);
+  {
+    std::vector<double> q0(nq, 0.0), v0(nq, 0.0);
+    for (int b = 0; b < nb; ++b) {
+      const Body& body = model.bodies[b];
+      const int o = Model::coordinate_offset(b);
+      Eigen::Map<Vec3>(q0.data() + o) = body.position;
+      Eigen::Map<Quat>(q0.data() + o + 3) = body.orientation;
+      Eigen::Map<Vec3>(v0.data() + o) = body.velocity;
+      Eigen::Map<Quat>(v0.data() + o + 3) =
+          0.5 * EMatrix(body.orientation).transpose() * body.angular_velocity;
+    }
+    for (const ForceExpressions& fx : force_expr)
+      for (size_t u = 0; u < fx.measures.size(); ++u)
+        if (model.measures[fx.measures[u]].offset_initial)
+          measure_offsets[fx.measures[u]] = EvaluateMeasureValue(fx.defs[u], q0.data(), v0.data(), nullptr);
+    // Force values at the initial state of the file (t = 0): one that is not finite
+    // there is a mistake of the model file, refused before any library code runs.
+    std::vector<double> mvalues(nmeas, 0.0);
+    for (size_t k = 0; k < model.forces.size(); ++k) {
+      const Force& f = model.forces[k];
+      if (FirstExpression(f) == EndExpression(f)) continue;
+      const ForceValues fv =
+          ComputeForceValues(static_cast<int>(k), 0.0, q0.data(), v0.data(), &force_expr[k], mvalues.data());
+      const std::string bad = NonFiniteForceValue(static_cast<int>(k), fv);
+      if (!bad.empty()) {
+        throw ModelError(f.where, "force '" + f.name + "'",
+                         bad + " at the initial state of the model file (t = 0); a force value must be finite");
+      }
+    }
+    for (MeasureConstraint& mc : measure_constraints) {
+      if (mc.motion) continue;
+      // Gear: C = (m2 - m2_0) - r (m1 - m1_0), m_0 at the initial state of the file.
+      mc.constant = 0;
+      for (int u = 0; u < 2; ++u) {
+        MeasureJacobian mj;
+        EvaluateMeasurePosition(mc.def[u], q0.data(), false, &mj);
+        mc.last[u] = mj.value;
+        mc.constant -= mc.coef[u] * mj.value;
+      }
+    }
+  }
   user_forces.resize(model.forces.size());
   for (size_t k = 0; k < model.forces.size(); ++k) {
     const Force& f = model.forces[k];
@@ -987,34 +1056,6 @@ void MultibodySystem::Impl::Setup() {
         user_forces[k] = std::make_unique<UserForce>(f.library, f.function, std::move(values));
       } catch (const std::exception& e) {
         throw std::runtime_error("user force '" + f.name + "': " + e.what());
-      }
-    }
-  }
-  measure_offsets.assign(nmeas, 0.0);
-  {
-    std::vector<double> q0(nq, 0.0), v0(nq, 0.0);
-    for (int b = 0; b < nb; ++b) {
-      const Body& body = model.bodies[b];
-      const int o = Model::coordinate_offset(b);
-      Eigen::Map<Vec3>(q0.data() + o) = body.position;
-      Eigen::Map<Quat>(q0.data() + o + 3) = body.orientation;
-      Eigen::Map<Vec3>(v0.data() + o) = body.velocity;
-      Eigen::Map<Quat>(v0.data() + o + 3) =
-          0.5 * EMatrix(body.orientation).transpose() * body.angular_velocity;
-    }
-    for (const ForceExpressions& fx : force_expr)
-      for (size_t u = 0; u < fx.measures.size(); ++u)
-        if (model.measures[fx.measures[u]].offset_initial)
-          measure_offsets[fx.measures[u]] = EvaluateMeasureValue(fx.defs[u], q0.data(), v0.data(), nullptr);
-    for (MeasureConstraint& mc : measure_constraints) {
-      if (mc.motion) continue;
-      // Gear: C = (m2 - m2_0) - r (m1 - m1_0), m_0 at the initial state of the file.
-      mc.constant = 0;
-      for (int u = 0; u < 2; ++u) {
-        MeasureJacobian mj;
-        EvaluateMeasurePosition(mc.def[u], q0.data(), false, &mj);
-        mc.last[u] = mj.value;
-        mc.constant -= mc.coef[u] * mj.value;
       }
     }
   }
@@ -1044,6 +1085,7 @@ void MultibodySystem::Impl::Setup() {
   for (size_t k = 0; k < measure_constraints.size(); ++k)
     last[k] = {measure_constraints[k].last[0], measure_constraints[k].last[1]};
   Run(ein, eout);
+  error.clear();  // the generic state may be outside a force value's domain: not an error
   for (size_t k = 0; k < measure_constraints.size(); ++k) {
     measure_constraints[k].last[0] = last[k][0];
     measure_constraints[k].last[1] = last[k][1];
@@ -1427,6 +1469,15 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     ForceExpressions& fx = force_expr[k];
     force_values[k] =
         ComputeForceValues(static_cast<int>(k), in.t, q, v, &fx, measure_values.data());
+    if (law_error.empty()) {
+      // A value that is not finite is fatal: the model says something impossible there.
+      const std::string bad = NonFiniteForceValue(static_cast<int>(k), force_values[k]);
+      if (!bad.empty()) {
+        std::ostringstream msg;
+        msg << std::setprecision(10) << "force '" << fe.name << "': " << bad << " at t = " << in.t;
+        law_error = msg.str();
+      }
+    }
     const bool state_values = !fx.measures.empty();
     Vec3 f;
     Mat3x14 dfdq, dfdv;
@@ -1998,10 +2049,13 @@ void MultibodySystem::InitialStateParameterDerivatives(std::vector<double>& dq,
         // e = (cos(a/2), sin(a/2) u / |u|)
         const std::vector<double> w = values(x.orientation);
         const Vec3 axis(w[0], w[1], w[2]);
-        const double angle = w[3], n = axis.norm();
-        const Vec3 un = axis / n;
+        // Scaled by the largest component first (as QuaternionFromAxisAngle), so that
+        // |axis| neither overflows nor underflows.
+        const double angle = w[3], scale = axis.cwiseAbs().maxCoeff();
+        const double n = (axis / scale).norm();
+        const Vec3 un = axis / scale / n;
         Vec3 daxis;
-        for (int c = 0; c < 3; ++c) daxis[c] = im.ParamDerivative(x.orientation[c], k);
+        for (int c = 0; c < 3; ++c) daxis[c] = im.ParamDerivative(x.orientation[c], k) / scale;
         const double dangle = im.ParamDerivative(x.orientation[3], k);
         de[0] = -0.5 * std::sin(angle / 2) * dangle;
         de.tail<3>() = 0.5 * std::cos(angle / 2) * dangle * un +

@@ -34,6 +34,9 @@ void CopyIn(const MarkerPairKinematics& k, double t, mbdae_user_force_input* in)
 // --- UserForceLibrary ---------------------------------------------------------------
 
 UserForceLibrary::UserForceLibrary(std::string path) : path_(std::move(path)) {
+  // dlopen searches the system's library path for a name without '/': a file name alone
+  // means the file in the current folder.
+  if (path_.find('/') == std::string::npos) path_ = "./" + path_;
   dlerror();  // clear
   handle_ = dlopen(path_.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!handle_) {

@@ -22,8 +22,10 @@
 namespace mbdae::mbs {
 
 // A shared library opened with dlopen(path, RTLD_NOW | RTLD_LOCAL), closed on
-// destruction. `path` is used as given (the loader makes a model's `library:` absolute,
-// relative to the model file, before calling). The library must export
+// destruction. `path` is a file: a path without '/' is taken in the current folder
+// ("./" is prepended, path() returns it so), never searched on the system's library path
+// (the loader resolves a model's `library:` against the model file's folder first).
+// Opening runs the library's initialisers. The library must export
 // mbdae_user_force_abi_version() returning MBDAE_USER_FORCE_ABI_VERSION.
 class UserForceLibrary {
  public:

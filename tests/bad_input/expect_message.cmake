@@ -1,0 +1,40 @@
+# Runs `mbdae COMMAND NAME ARGS` in a fresh folder holding a copy of MODEL (and of the
+# files in COPY) and checks: the exit code (EXPECT); that stderr contains every text of
+# MESSAGES (a list; plain text, not regular expressions); whether the results file
+# STEM.h5 exists afterwards (EXPECT_FILE YES/NO, unchecked if not given); whether the
+# file PRESENT exists and the file ABSENT does not (names in the folder, optional).
+get_filename_component(name ${MODEL} NAME)
+get_filename_component(stem ${MODEL} NAME_WE)
+set(dir ${WORKDIR}/${COMMAND}_${name}_${EXPECT})
+file(REMOVE_RECURSE ${dir})
+file(MAKE_DIRECTORY ${dir})
+file(COPY ${MODEL} DESTINATION ${dir})
+foreach(extra ${COPY})
+  file(COPY ${extra} DESTINATION ${dir})
+endforeach()
+execute_process(COMMAND ${MBDAE} ${COMMAND} ${name} ${ARGS} --quiet
+                WORKING_DIRECTORY ${dir} RESULT_VARIABLE code
+                OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT code STREQUAL "${EXPECT}")
+  message(FATAL_ERROR "exit code ${code}, expected ${EXPECT}\nstdout: ${out}\nstderr: ${err}")
+endif()
+foreach(text ${MESSAGES})
+  string(FIND "${err}" "${text}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "stderr does not say '${text}':\n${err}")
+  endif()
+endforeach()
+if(DEFINED EXPECT_FILE)
+  if(EXPECT_FILE AND NOT EXISTS ${dir}/${stem}.h5)
+    message(FATAL_ERROR "${stem}.h5 was not written")
+  elseif(NOT EXPECT_FILE AND EXISTS ${dir}/${stem}.h5)
+    message(FATAL_ERROR "${stem}.h5 was written although the model was refused")
+  endif()
+endif()
+if(DEFINED PRESENT AND NOT EXISTS ${dir}/${PRESENT})
+  message(FATAL_ERROR "${PRESENT} does not exist")
+endif()
+if(DEFINED ABSENT AND EXISTS ${dir}/${ABSENT})
+  message(FATAL_ERROR "${ABSENT} exists")
+endif()
+message(STATUS "exit code ${code}; stderr: ${err}")
