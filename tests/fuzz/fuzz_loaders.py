@@ -154,6 +154,7 @@ def main():
     ap.add_argument("--out", default=None, help="folder for failing inputs (default: a temporary folder)")
     args = ap.parse_args()
 
+    args.mbdae = os.path.abspath(args.mbdae)  # the runs happen in a temporary folder
     rng = random.Random(args.seed)
     models = seeds()
     if not models:

@@ -71,7 +71,7 @@ TEST(Loader, EveryKey) {
   const Body& crank = m.bodies[0];
   EXPECT_EQ(crank.mass, 0.04325);
   Mat3 inertia;
-  inertia << 2.194e-6, 1e-8, -2e-8, 1e-8, 4.410e-7, 3e-8, -2e-8, 3e-8, 5.255e-6;
+  inertia << 2.194e-6, 1e-8, -2e-8, 1e-8, 4.410e-7, 3e-8, -2e-8, 3e-8, 2.500e-6;
   EXPECT_EQ(crank.inertia, inertia);
   EXPECT_EQ(crank.position, Vec3(0.1, 0.2, 0.3));
   EXPECT_NEAR(crank.orientation.norm(), 1.0, 1e-15);
