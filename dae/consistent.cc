@@ -497,44 +497,90 @@ ConsistencyReport MakeConsistent(MechanicalSystem& system, State& x,
   //    [M C_q^T; C_q 0] [a; lambda] = [Q; gamma].
   auto reduced = KeepConstraints(system, kept);
   const int nk = static_cast<int>(kept.size());
-  const CscPattern& pm = reduced->pattern(Matrix::kMass);
-  const CscPattern& pk = reduced->pattern(Matrix::kConstraintDq);
-  BlockAssembler kkt;
-  const int b_m = kkt.AddBlock(pm, 0, 0);
-  const int b_ct = kkt.AddBlock(pk, 0, nq, /*transpose=*/true);
-  const int b_c = kkt.AddBlock(pk, nq, 0);
-  kkt.Finalize(nq + nk, nq + nk);
-  std::vector<double> mass(pm.nnz()), cqk(pk.nnz()), values(kkt.pattern().nnz(), 0.0);
-  std::vector<double> sol(nq + nk, 0.0), gamma(nk, 0.0);
-  EvalInput in;
-  in.t = x.t;
-  in.q = x.q.data();
-  in.v = x.v.data();
-  EvalOutput out;
-  out.force = sol.data();
-  out.acc_rhs = gamma.data();
-  out[Matrix::kMass] = mass.data();
-  out[Matrix::kConstraintDq] = cqk.data();
-  if (reduced->Evaluate(in, out) != 0) {
-    report.message = std::string("MakeConsistent: the system cannot be evaluated at t = ") +
-                     Num(x.t) + ": " + system.last_error();
+  std::vector<double> lambda(nk, 0.0);
+  AccelerationSolver acceleration(*reduced);
+  if (const int rc = acceleration.Solve(x.t, x.q.data(), x.v.data(), x.a.data(), lambda.data()); rc != 0) {
+    x.a.assign(nq, 0.0);
+    report.message = rc == 1 ? "MakeConsistent: the acceleration-level system [M C_q^T; C_q 0] is "
+                               "singular at the consistent positions: " + acceleration.last_error()
+                             : std::string("MakeConsistent: the system cannot be evaluated at t = ") +
+                                   Num(x.t) + ": " + system.last_error();
     return report;
   }
-  std::copy(gamma.begin(), gamma.end(), sol.begin() + nq);
-  kkt.Accumulate(b_m, mass.data(), 1.0, values.data());
-  kkt.Accumulate(b_ct, cqk.data(), 1.0, values.data());
-  kkt.Accumulate(b_c, cqk.data(), 1.0, values.data());
-  KluSolver klu(kkt.pattern());
-  if (!klu.Factor(values.data(), &error)) {
-    report.message = "MakeConsistent: the acceleration-level system [M C_q^T; C_q 0] is "
-                     "singular at the consistent positions: " + error;
-    return report;
-  }
-  klu.Solve(sol.data());
-  std::copy(sol.begin(), sol.begin() + nq, x.a.begin());
-  for (int k = 0; k < nk; ++k) x.lambda[kept[k]] = sol[nq + k];
+  for (int k = 0; k < nk; ++k) x.lambda[kept[k]] = lambda[k];
   report.ok = true;
   return report;
+}
+
+}  // namespace mbdae::dae
+
+namespace mbdae::dae {
+
+struct AccelerationSolver::Impl {
+  MechanicalSystem& system;
+  int nq = 0, nc = 0;
+  BlockAssembler kkt;
+  int b_m = 0, b_ct = 0, b_c = 0;
+  std::vector<double> mass, cq, values, sol, gamma;
+  std::unique_ptr<KluSolver> klu;
+  std::string error;
+
+  explicit Impl(MechanicalSystem& s) : system(s), nq(s.num_coordinates()), nc(s.num_constraints()) {
+    const CscPattern& pm = system.pattern(Matrix::kMass);
+    const CscPattern& pc = system.pattern(Matrix::kConstraintDq);
+    b_m = kkt.AddBlock(pm, 0, 0);
+    b_ct = kkt.AddBlock(pc, 0, nq, /*transpose=*/true);
+    b_c = kkt.AddBlock(pc, nq, 0);
+    kkt.Finalize(nq + nc, nq + nc);
+    mass.assign(pm.nnz(), 0.0);
+    cq.assign(pc.nnz(), 0.0);
+    values.assign(kkt.pattern().nnz(), 0.0);
+    sol.assign(nq + nc, 0.0);
+    gamma.assign(nc, 0.0);
+    klu = std::make_unique<KluSolver>(kkt.pattern());
+  }
+};
+
+AccelerationSolver::AccelerationSolver(MechanicalSystem& system)
+    : impl_(std::make_unique<Impl>(system)) {}
+AccelerationSolver::~AccelerationSolver() = default;
+const std::string& AccelerationSolver::last_error() const { return impl_->error; }
+
+void AccelerationSolver::MultiplyConstraintJacobian(const double* x, double* y) const {
+  std::fill(y, y + impl_->nc, 0.0);
+  MultiplyAdd(impl_->system.pattern(Matrix::kConstraintDq), impl_->cq.data(), 1.0, x, y);
+}
+
+void AccelerationSolver::SolveAgain(double* rhs) const { impl_->klu->Solve(rhs); }
+
+int AccelerationSolver::Solve(double t, const double* q, const double* v, double* a,
+                              double* lambda) {
+  Impl& m = *impl_;
+  std::fill(m.sol.begin(), m.sol.end(), 0.0);
+  EvalInput in;
+  in.t = t;
+  in.q = q;
+  in.v = v;
+  EvalOutput out;
+  out.force = m.sol.data();
+  out.acc_rhs = m.gamma.data();
+  out[Matrix::kMass] = m.mass.data();
+  out[Matrix::kConstraintDq] = m.cq.data();
+  if (const int rc = m.system.Evaluate(in, out); rc != 0) {
+    m.error = std::string("the system cannot be evaluated at t = ") + Num(t) + ": " +
+              m.system.last_error();
+    return rc;
+  }
+  std::copy(m.gamma.begin(), m.gamma.end(), m.sol.begin() + m.nq);
+  std::fill(m.values.begin(), m.values.end(), 0.0);
+  m.kkt.Accumulate(m.b_m, m.mass.data(), 1.0, m.values.data());
+  m.kkt.Accumulate(m.b_ct, m.cq.data(), 1.0, m.values.data());
+  m.kkt.Accumulate(m.b_c, m.cq.data(), 1.0, m.values.data());
+  if (!m.klu->Factor(m.values.data(), &m.error)) return 1;
+  m.klu->Solve(m.sol.data());
+  std::copy(m.sol.begin(), m.sol.begin() + m.nq, a);
+  std::copy(m.sol.begin() + m.nq, m.sol.end(), lambda);
+  return 0;
 }
 
 }  // namespace mbdae::dae

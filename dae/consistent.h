@@ -50,6 +50,36 @@ std::vector<int> FindRedundantConstraints(MechanicalSystem& system, double t, co
 // A view of `base` with only the constraint equations listed in `kept` (sorted).
 std::unique_ptr<MechanicalSystem> KeepConstraints(MechanicalSystem& base, std::vector<int> kept);
 
+// The acceleration-level equations of `system` at (t, q, v):
+//   [M  C_q^T; C_q  0] [a; lambda] = [Q; gamma],
+// with gamma the system's acc_rhs (C_q a = gamma is the second time derivative of
+// C(q, t) = 0). The pattern is analysed once (KLU) at construction; each Solve evaluates
+// M, C_q, Q and gamma and factorises (a refactorisation with the pivots of the previous
+// call when KLU can). The system's constraints must be independent (a KeepConstraints
+// view). Used for the consistent a and lambda of MakeConsistent, the output rows of the
+// driver (a and lambda determined by (t, q, v) alone) and the perturbed start of HHT.
+class AccelerationSolver {
+ public:
+  explicit AccelerationSolver(MechanicalSystem& system);
+  ~AccelerationSolver();
+  AccelerationSolver(const AccelerationSolver&) = delete;
+  AccelerationSolver& operator=(const AccelerationSolver&) = delete;
+
+  // a (nq) and lambda (nc) at (t, q, v). Returns 0; the system's nonzero Evaluate code
+  // when it cannot be evaluated; or 1 when the matrix is numerically singular (KLU). On a
+  // nonzero return a and lambda are untouched and last_error() says why.
+  int Solve(double t, const double* q, const double* v, double* a, double* lambda);
+  // After a successful Solve: y = C_q x (x: nq, y: nc) with the C_q of that Solve, and
+  // the solution of the same matrix for another right side (nq + nc, in place).
+  void MultiplyConstraintJacobian(const double* x, double* y) const;
+  void SolveAgain(double* rhs) const;
+  const std::string& last_error() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 // Makes x consistent in place (x.t, x.q, x.v used as the initial guess; a and lambda
 // computed). Positions and velocities are corrected with minimum-norm steps (SPQR),
 // which stay valid when constraints are redundant; the redundant equations are then

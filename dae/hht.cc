@@ -52,6 +52,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "dae/consistent.h"
 #include "dae/klu_solver.h"
 
 namespace mbdae::dae {
@@ -85,6 +86,21 @@ bool HhtOptions::IsValid(std::string* error) const {
 
 const char* HhtFormName(HhtOptions::Form form) {
   return form == HhtOptions::Form::kNegrut ? "negrut" : "equilibrium";
+}
+
+const char* HhtStartName(HhtOptions::Start start) {
+  return start == HhtOptions::Start::kPerturbed ? "perturbed" : "consistent";
+}
+
+bool ParseHhtStart(const std::string& name, HhtOptions::Start* start) {
+  if (name == "perturbed") {
+    *start = HhtOptions::Start::kPerturbed;
+  } else if (name == "consistent") {
+    *start = HhtOptions::Start::kConsistent;
+  } else {
+    return false;
+  }
+  return true;
 }
 
 bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {
@@ -267,6 +283,7 @@ class HhtIntegrator final : public Integrator {
         for (int i = 0; i < 3; ++i) wbar_[3 * k + i] *= 2;
       }
     }
+    if (equilibrium_ && opt_.start == HhtOptions::Start::kPerturbed && alpha_ != 0) PerturbStart();
     // F_0 = C_q^T lambda_0 - Q(q_0, v_0, t_0).
     initialized_ = EvaluateF(state_.t, state_.q.data(), state_.v.data(), state_.lambda.data(),
                              fn_.data()) == 0;
@@ -454,6 +471,53 @@ class HhtIntegrator final : public Integrator {
 
  private:
   enum class StepResult { kOk, kNewtonFailure, kFatal };
+
+  // HhtOptions::Start::kPerturbed (dae/hht.h): the starting values of the smooth
+  // solution of the equilibrium form. With j = (a_p - a_0)/h ~ q'''(t_0), a_p the
+  // acceleration-level solution at the Taylor-predicted state at t_0 + h:
+  //   abar_0 = a_0 + alpha h j               (abar_n = a(t_n + alpha h) + O(h^2)),
+  //   omegabar'_0 likewise from w = 2 G(e) a at both states,
+  //   v_0 += dv, [M C_q^T; C_q 0] [dv; mu] = [0; -c h^2 C_q j],  c = 1/12 + alpha^2/4:
+  // along the position-level constraints Newmark's update with exact positions leaves
+  // v_n = q'(t_n) - c h^2 q'''(t_n) + O(h^3) (the h^3 terms of the position update with
+  // beta = (1 - alpha)^2 / 4, gamma = 1/2 - alpha); an exact v_0 is off by that much and
+  // excites the parasitic root -rho_inf, a double root along the constraints: the
+  // multipliers then alternate in sign with an envelope n rho_inf^n. Leaves the
+  // kConsistent values (set before) if the acceleration-level system cannot be solved.
+  void PerturbStart() {
+    const double h = h_;
+    std::vector<double> qp(nq_), vp(nq_), ap(nq_), lp(nc_), jerk(nq_), rhs(nq_ + nc_, 0.0);
+    for (int i = 0; i < nq_; ++i) {
+      qp[i] = state_.q[i] + h * state_.v[i] + 0.5 * h * h * state_.a[i];
+      vp[i] = state_.v[i] + h * state_.a[i];
+    }
+    AccelerationSolver solver(sys_);
+    if (solver.Solve(state_.t + h, qp.data(), vp.data(), ap.data(), lp.data()) != 0 ||
+        solver.Solve(state_.t, state_.q.data(), state_.v.data(), vp.data(), lp.data()) != 0) {
+      summary_.message = "HHT perturbed start not possible (" + solver.last_error() +
+                         "): started with abar_0 = a_0";
+      return;
+    }
+    for (int i = 0; i < nq_; ++i) jerk[i] = (ap[i] - state_.a[i]) / h;
+    solver.MultiplyConstraintJacobian(jerk.data(), rhs.data() + nq_);
+    const double c = 1.0 / 12.0 + 0.25 * alpha_ * alpha_;
+    for (int k = 0; k < nc_; ++k) rhs[nq_ + k] *= -c * h * h;
+    solver.SolveAgain(rhs.data());
+    for (int i = 0; i < nq_; ++i) {
+      state_.v[i] += rhs[i];
+      abar_[i] = state_.a[i] + alpha_ * h * jerk[i];
+    }
+    const std::vector<int>& groups = sys_.quaternion_offsets();
+    for (size_t k = 0; k < groups.size(); ++k) {
+      const int g = groups[k];
+      double wp[3];
+      Gx(&qp[g], &ap[g], wp);
+      for (int i = 0; i < 3; ++i) {
+        double& w = wbar_[3 * k + i];  // 2 G(e_0) a_0
+        w += alpha_ * (2 * wp[i] - w);
+      }
+    }
+  }
 
   bool Fail(const std::string& why) {
     summary_.status = Summary::Status::kFailed;

@@ -120,6 +120,7 @@ double ParameterValue(const mbs::Model& model, const mbs::SensitivityParameter& 
 dae::HhtOptions GradientHhtOptions(const mbs::SimulationSettings& settings, double newton_factor) {
   dae::HhtOptions o = HhtOptionsOf(settings);
   o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
+  o.start = dae::HhtOptions::Start::kConsistent;  // the start the sensitivities differentiate
   return o;
 }
 
@@ -244,6 +245,7 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
   if (hht)
     so.adjust_hht = [newton_factor](dae::HhtOptions& o) {
       o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
+      o.start = dae::HhtOptions::Start::kConsistent;  // the start the sensitivities differentiate
     };
   if (hht && exact) {
     // The record of the run under the memory budget (checkpoints beyond it:
@@ -348,6 +350,7 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
   if (hht && settings.hht_adaptive) {
     po.adjust_hht = [&steps, newton_factor](dae::HhtOptions& o) {
       o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
+      o.start = dae::HhtOptions::Start::kConsistent;
       o.replay_steps = steps;
     };
   }

@@ -135,6 +135,7 @@ struct ResultsFile::Impl {
   std::vector<RowDataset> body_datasets;  // 4 per body
   std::vector<RowDataset> measures;
   std::vector<RowDataset> joints;         // 2 per joint
+  std::vector<RowDataset> efforts;        // one per layout.efforts entry
   std::vector<RowDataset> forces;         // 2 per force
   RowDataset kinetic, potential, position_violation, velocity_violation;
   std::vector<double> zeros;
@@ -179,7 +180,7 @@ struct ResultsFile::Impl {
     for (RowDataset* d : {&time, &q, &v, &a, &lambda, &kinetic, &potential, &position_violation,
                           &velocity_violation})
       WritePending(*d);
-    for (auto* group : {&body_datasets, &measures, &joints, &forces})
+    for (auto* group : {&body_datasets, &measures, &joints, &efforts, &forces})
       for (auto& d : *group) WritePending(d);
     written = rows;
   }
@@ -200,6 +201,9 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   for (const auto& n : layout.bodies) CheckName(n, "body");
   for (const auto& n : layout.measures) CheckName(n, "measure");
   for (const auto& n : layout.joints) CheckName(n, "joint");
+  for (const auto& n : layout.efforts)
+    if (std::find(layout.joints.begin(), layout.joints.end(), n) == layout.joints.end())
+      throw std::runtime_error("results file: effort of '" + n + "', which is not a joint");
   for (const auto& n : layout.forces) CheckName(n, "force");
 
   m.file = Handle(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
@@ -232,6 +236,11 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
     Handle g = CreateGroup(joints.get(), name);
     m.joints.push_back(CreateRowDataset(g.get(), "force", 3, false));
     m.joints.push_back(CreateRowDataset(g.get(), "torque", 3, false));
+  }
+  for (const auto& name : layout.efforts) {
+    Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
+                     "open the group of joint " + name);
+    m.efforts.push_back(CreateRowDataset(g.get(), "effort", 0, true));
   }
   Handle forces = CreateGroup(f, "forces");
   for (const auto& name : layout.forces) {
@@ -279,6 +288,8 @@ void ResultsFile::AppendRow(const ResultsRow& row) {
   for (size_t j = 0; j < m.layout.joints.size(); ++j)
     for (int k = 0; k < 2; ++k)
       m.Append(m.joints[2 * j + k], row.joint_data ? row.joint_data + 6 * j + 3 * k : nullptr);
+  for (size_t j = 0; j < m.efforts.size(); ++j)
+    m.Append(m.efforts[j], row.effort_data ? row.effort_data + j : nullptr);
   for (size_t j = 0; j < m.layout.forces.size(); ++j)
     for (int k = 0; k < 2; ++k)
       m.Append(m.forces[2 * j + k], row.force_data ? row.force_data + 6 * j + 3 * k : nullptr);

@@ -4,7 +4,8 @@
 // Datasets (N rows so far):
 //   /time N; /q /v /a N x nq; /q_names nq; /lambda N x nc; /lambda_names nc;
 //   /bodies/NAME/{position N x 3, orientation N x 4, velocity N x 3, angular_velocity N x 3};
-//   /measures/NAME N; /joints/NAME/{force,torque} N x 3; /forces/NAME/{force,torque} N x 3;
+//   /measures/NAME N; /joints/NAME/{force,torque} N x 3, /joints/NAME/effort N (driven
+//   joints); /forces/NAME/{force,torque} N x 3;
 //   /energy/{kinetic,potential} N; /violation/{position,velocity} N (max |C|, max |C_q v + C_t|).
 // Name lists are variable-length UTF-8 string datasets. Every dataset is chunked with an
 // unlimited first dimension and, by default, the rows are written and the file flushed
@@ -26,6 +27,9 @@ struct ResultsLayout {
   std::vector<std::string> bodies;        // /bodies/NAME/{position,orientation,velocity,angular_velocity}
   std::vector<std::string> measures;      // /measures/NAME
   std::vector<std::string> joints;        // /joints/NAME/{force,torque}
+  // Joints of `joints` that also have /joints/NAME/effort (the actuator effort of a
+  // driven joint), in the order of ResultsRow::effort_data.
+  std::vector<std::string> efforts;
   std::vector<std::string> forces;        // /forces/NAME/{force,torque}
 };
 
@@ -40,6 +44,7 @@ struct ResultsRow {
   const double* body_data = nullptr;     // 13 per body
   const double* measures = nullptr;      // one per measure
   const double* joint_data = nullptr;    // 6 per joint: force(3), torque(3)
+  const double* effort_data = nullptr;   // one per ResultsLayout::efforts entry
   const double* force_data = nullptr;    // 6 per force element: force(3), torque(3)
   double kinetic_energy = 0;             // /energy/kinetic
   double potential_energy = 0;           // /energy/potential

@@ -3,6 +3,8 @@
 #include <unsupported/Eigen/AutoDiff>
 
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "dae/sparse.h"
 #include "mbs/system.h"
@@ -102,28 +104,49 @@ struct ReactionMeasures::Impl {
     return 0;
   }
 
-  // The measure's component from the generalised force `g` (local entries of the body
-  // slots) at local coordinates x (slot 0: body of marker i, slot 1: body of marker j).
+  // The markers (i, j) whose body slots a joint's wrench uses: the joint's own, or
+  // those of the driven measure (motion: its measure; gear: the second measure).
+  std::pair<int, int> JointMarkers(int joint) const {
+    const Joint& jt = model.joints.at(joint);
+    if (jt.type == JointType::kMotion || jt.type == JointType::kGear) {
+      const Measure& me = model.measures.at(jt.measures[jt.type == JointType::kGear ? 1 : 0]);
+      return {me.i, me.j < 0 ? 0 : me.j};
+    }
+    return {jt.i, jt.j};
+  }
+
+  // The wrench (world axes) on the body of marker mi about its origin from the
+  // generalised force `g` (local entries of the body slots) at local coordinates x
+  // (slot 0: body of marker i, slot 1: body of marker j).
   template <typename T>
-  T Component(const Measure& me, const T* x0, const T* x1, const double* g0, const double* g1,
-              int body_i, int body_j) const {
-    const Marker& mi = model.markers[me.i];
-    const Marker& mj = model.markers[me.j];
-    V3<T> f = V3<T>::Zero(), n = V3<T>::Zero();
+  void Wrench(int mi, const T* x0, const T* x1, const double* g0, const double* g1, int body_i,
+              int body_j, V3<T>* f, V3<T>* n) const {
+    const Marker& marker_i = model.markers[mi];
+    *f = V3<T>::Zero();
+    *n = V3<T>::Zero();
     if (body_i >= 0) {
       const M3<T> A = Rotation(x0 + 3);
-      f = Eigen::Map<const Eigen::Vector3d>(g0).template cast<T>();
+      *f = Eigen::Map<const Eigen::Vector3d>(g0).template cast<T>();
       const V3<T> nc = A * HalfG(x0 + 3, g0 + 3);
-      const V3<T> s = A * mi.position.template cast<T>();
-      n = nc - s.cross(f);
+      const V3<T> s = A * marker_i.position.template cast<T>();
+      *n = nc - s.cross(*f);
     } else if (body_j >= 0) {
       const M3<T> A = Rotation(x1 + 3);
       const V3<T> fj = Eigen::Map<const Eigen::Vector3d>(g1).template cast<T>();
       const V3<T> nj = A * HalfG(x1 + 3, g1 + 3);
-      const V3<T> arm = V3<T>(x1[0], x1[1], x1[2]) - mi.position.template cast<T>();
-      f = -fj;
-      n = -nj - arm.cross(fj);
+      const V3<T> arm = V3<T>(x1[0], x1[1], x1[2]) - marker_i.position.template cast<T>();
+      *f = -fj;
+      *n = -nj - arm.cross(fj);
     }
+  }
+
+  // The measure's component from the generalised force `g` (as Wrench).
+  template <typename T>
+  T Component(const Measure& me, const T* x0, const T* x1, const double* g0, const double* g1,
+              int body_i, int body_j) const {
+    const Marker& mj = model.markers[me.j];
+    V3<T> f, n;
+    Wrench<T>(me.i, x0, x1, g0, g1, body_i, body_j, &f, &n);
     const V3<T>& vec = me.torque ? n : f;
     const int axis = static_cast<int>(me.component);
     if (me.frame == MeasureFrame::kWorld) return vec[axis];
@@ -134,6 +157,32 @@ struct ReactionMeasures::Impl {
       u = mj.orientation.col(axis).template cast<T>();
     }
     return u.dot(vec);
+  }
+
+  int JointWrench(int joint, double t, const double* q, const double* lambda, double* force,
+                  double* torque) {
+    if (const int rc = Prepare(joint, t, q, lambda, false); rc != 0) return rc;
+    const auto [mi, mj] = JointMarkers(joint);
+    const int bi = model.markers[mi].body, bj = model.markers[mj].body;
+    double x0[7] = {0, 0, 0, 1, 0, 0, 0}, x1[7] = {0, 0, 0, 1, 0, 0, 0};
+    double g0[7] = {0, 0, 0, 0, 0, 0, 0}, g1[7] = {0, 0, 0, 0, 0, 0, 0};
+    if (bi >= 0) {
+      const int o = Model::coordinate_offset(bi);
+      std::copy(q + o, q + o + 7, x0);
+      std::copy(gen.begin() + o, gen.begin() + o + 7, g0);
+    }
+    if (bj >= 0) {
+      const int o = Model::coordinate_offset(bj);
+      std::copy(q + o, q + o + 7, x1);
+      std::copy(gen.begin() + o, gen.begin() + o + 7, g1);
+    }
+    V3<double> f, n;
+    Wrench<double>(mi, x0, x1, g0, g1, bi, bj, &f, &n);
+    for (int k = 0; k < 3; ++k) {
+      force[k] = f[k];
+      torque[k] = n[k];
+    }
+    return 0;
   }
 
   int Derivatives(int measure, double t, const double* q, const double* lambda, double weight,
@@ -221,6 +270,13 @@ int ReactionMeasures::Evaluate(double t, const double* q, const double* lambda, 
     if (const int rc = impl_->Derivatives(m, t, q, lambda, 1.0, &values[m], nullptr, nullptr); rc != 0)
       return rc;
   return 0;
+}
+
+int ReactionMeasures::JointWrench(int joint, double t, const double* q, const double* lambda,
+                                  double* force, double* torque) {
+  if (joint < 0 || joint >= static_cast<int>(impl_->model.joints.size()))
+    throw std::invalid_argument("ReactionMeasures::JointWrench: no joint " + std::to_string(joint));
+  return impl_->JointWrench(joint, t, q, lambda, force, torque);
 }
 
 int ReactionMeasures::Derivatives(int measure, double t, const double* q, const double* lambda,

@@ -17,7 +17,8 @@
 // and the reaction is the whole constraint force of the joint's single equation on the
 // body of that marker i (for a rotational motion about an axis: the driving torque, in
 // the units of the joint's multiplier times the angle's gradient). JointReaction gives
-// zeros for these joints; a reaction measure gives this definition.
+// zeros for these joints; a reaction measure and JointWrench give this definition (the
+// rows /joints/NAME/{force,torque} of motion and gear joints).
 // frame j: components along marker j's axes R_j = A(e_j) O_j (O_j for a ground marker).
 //
 // Derivatives: the value is linear in lambda (d/dlambda exact, from C_q); the q-
@@ -61,6 +62,15 @@ class ReactionMeasures {
   // may be null.
   int Derivatives(int measure, double t, const double* q, const double* lambda, double weight,
                   double* value, double* dq, double* dlambda);
+
+  // The force and torque (world axes, 3 + 3) that joint `joint` (Model::joints index)
+  // exerts on the body of its marker i, about marker i's origin, at (t, q, lambda): the
+  // definition above, with the joint's own markers or, for motion and gear joints, those
+  // of the driven measure. For joints with markers it equals
+  // MultibodySystem::JointReaction. Returns 0, or nonzero if the system's evaluation
+  // failed (reason in last_error()).
+  int JointWrench(int joint, double t, const double* q, const double* lambda, double* force,
+                  double* torque);
 
   // The parameter values the private system uses (change them between evaluations like
   // MultibodySystem::parameters()).
