@@ -10,6 +10,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <sstream>
 #include <stdexcept>
@@ -36,6 +37,9 @@ bool IdaOptions::IsValid(std::string* error) const {
     return fail("algebraic_atol must be >= 0 (0: left out of the Newton test)");
   if (max_order < 1 || max_order > 5) return fail("max_order must be in [1, 5]");
   if (max_num_steps < 1) return fail("max_num_steps must be >= 1");
+  if (max_steps < 0) return fail("max_steps must be >= 0 (0: no limit)");
+  if (!(min_relative_step >= 0) || !(min_relative_step < 1e-3))
+    return fail("min_relative_step must be in [0, 1e-3) (0: no limit)");
   return true;
 }
 
@@ -261,6 +265,7 @@ class IdaIntegrator final : public Integrator {
     y_.reset();
     context_.reset();
     summary_ = Summary{};
+    tiny_steps_ = 0;
     callback_error_.clear();
     ida_error_.clear();
 
@@ -338,6 +343,7 @@ class IdaIntegrator final : public Integrator {
     state_ = x0;
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
+    if (observer_) observer_(state_, 0.0);
   }
 
   bool AdvanceTo(double t_target) override {
@@ -357,37 +363,59 @@ class IdaIntegrator final : public Integrator {
     callback_error_.clear();
     ida_error_.clear();
     // Stop exactly at the target: the reported state is a solution of the DAE, not an
-    // interpolant, and the integration never steps beyond a requested time.
+    // interpolant, and the integration never steps beyond a requested time. One step per
+    // IDASolve call, so that the step budget, the smallest step and the observer see
+    // every step.
     IDASetStopTime(mem, t_target);
     double t_ret = state_.t;
-    const int flag = IDASolve(mem, t_target, &t_ret, y_.get(), yp_.get(), IDA_NORMAL);
-    UpdateCounters();
-    // On success and on failure IDA leaves (t_ret, y, y') at the last point reached.
-    CopyState(t_ret);
+    int flag = IDA_SUCCESS;
+    for (long steps_this_call = 0;;) {
+      if (options_.max_steps > 0 && summary_.steps_accepted >= options_.max_steps)
+        return Fail("IDA: the step budget of " + std::to_string(options_.max_steps) +
+                    " steps (ida max_steps) is used up at t = " + ToString(state_.t) +
+                    " with h = " + ToString(summary_.h_last) + ", before t = " + ToString(t_target));
+      if (steps_this_call++ >= options_.max_num_steps) {
+        return Fail("IDA failed at t = " + ToString(state_.t) + " with IDA_TOO_MUCH_WORK (more than " +
+                    std::to_string(options_.max_num_steps) + " steps towards t = " + ToString(t_target) + ")");
+      }
+      flag = IDASolve(mem, t_target, &t_ret, y_.get(), yp_.get(), IDA_ONE_STEP);
+      UpdateCounters();
+      // After a step and after a failure IDA leaves (t_ret, y, y') at the last point
+      // reached.
+      CopyState(t_ret);
+      if (flag < 0) break;
+      const double h = std::abs(summary_.h_last);
+      tiny_steps_ = h < options_.min_relative_step * std::max(1.0, std::abs(t_ret)) ? tiny_steps_ + 1 : 0;
+      if (tiny_steps_ >= kTinyStepsToFail)
+        return Fail("IDA: the step size fell to h = " + ToString(h) + " at t = " + ToString(t_ret) +
+                    ", below " + ToString(options_.min_relative_step) + " max(1, |t|) (ida min_relative_step) for " +
+                    std::to_string(kTinyStepsToFail) +
+                    " steps in a row: the time no longer advances (a singular configuration or a "
+                    "discontinuity the corrector cannot pass, or a stiffness the tolerances do not "
+                    "resolve)");
+      if (observer_) observer_(state_, summary_.h_last);
+      if (flag == IDA_TSTOP_RETURN || t_ret >= t_target) break;
+    }
     if (quad_spec_.size > 0 && flag >= 0) {
       double t_quad = t_ret;
       const int qflag = IDAGetQuad(mem, &t_quad, yq_.get());
-      if (qflag != IDA_SUCCESS) {
-        summary_.status = Summary::Status::kFailed;
-        summary_.message = std::string("IDA: IDAGetQuad failed with ") + IDAGetReturnFlagName(qflag);
-        return false;
-      }
+      if (qflag != IDA_SUCCESS) return Fail(std::string("IDA: IDAGetQuad failed with ") + FlagName(qflag));
       const double* yq = N_VGetArrayPointer(yq_.get());
       std::copy(yq, yq + quad_spec_.size, quad_.begin());
     }
     if (flag < 0) {
       std::ostringstream os;
-      os << "IDA failed at t = " << ToString(t_ret) << " with " << IDAGetReturnFlagName(flag);
+      os << "IDA failed at t = " << ToString(t_ret) << " with " << FlagName(flag);
       if (!callback_error_.empty()) os << "; last system error: " << callback_error_;
       if (!ida_error_.empty()) os << " (" << ida_error_ << ")";
-      summary_.status = Summary::Status::kFailed;
-      summary_.message = os.str();
-      return false;
+      return Fail(os.str());
     }
     summary_.status = Summary::Status::kRunning;
     summary_.message.clear();
     return true;
   }
+
+  void SetStepObserver(StepObserver observer) override { observer_ = std::move(observer); }
 
   void SetQuadrature(Quadrature quadrature) override {
     if (quadrature.size < 0 || (quadrature.size > 0 && !quadrature.integrand))
@@ -416,11 +444,23 @@ class IdaIntegrator final : public Integrator {
     return buf;
   }
 
+  // IDAGetReturnFlagName returns a string it allocated with malloc.
+  static std::string FlagName(int flag) {
+    char* name = IDAGetReturnFlagName(flag);
+    std::string out = name ? name : "IDA flag " + std::to_string(flag);
+    std::free(name);
+    return out;
+  }
+
   static void Check(int flag, const char* what) {
-    if (flag != IDA_SUCCESS) {
-      throw std::runtime_error(std::string("IDA: ") + what + " failed with " +
-                               IDAGetReturnFlagName(flag));
-    }
+    if (flag != IDA_SUCCESS)
+      throw std::runtime_error(std::string("IDA: ") + what + " failed with " + FlagName(flag));
+  }
+
+  bool Fail(const std::string& why) {
+    summary_.status = Summary::Status::kFailed;
+    summary_.message = why;
+    return false;
   }
 
   void UpdateCounters() {
@@ -545,6 +585,11 @@ class IdaIntegrator final : public Integrator {
   Summary summary_;
   Quadrature quad_spec_;
   std::vector<double> quad_;
+  StepObserver observer_;
+  // Steps in a row below the smallest relative step. A few are normal: IDA's first step
+  // can be far smaller (0.5 / ||y'|| in the error weights) and doubles at every step.
+  static constexpr int kTinyStepsToFail = 20;
+  int tiny_steps_ = 0;
   std::string callback_error_, ida_error_;
   // Destroyed in reverse order: IDA memory first, the context last.
   ContextPtr context_;

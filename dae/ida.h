@@ -2,7 +2,10 @@
 // mechanical system:
 //   q' = v - C_q^T mu,   M v' + C_q^T lambda = Q,   C(q, t) = 0,   C_q v + C_t = 0,
 // with the analytic sparse Jacobian and KLU; lambda and mu are algebraic and left out
-// of the error test.
+// of the error test. IDA is called one step at a time (IDA_ONE_STEP with the output time
+// as stop time): the step observer (Integrator::SetStepObserver) sees every step, and a
+// run ends with a message naming t and h when it exceeds its step budget or its steps
+// collapse (IdaOptions::max_steps, min_relative_step).
 #pragma once
 
 #include <memory>
@@ -27,6 +30,16 @@ struct IdaOptions {
   double initial_step = 0;  // 0: IDA chooses
   int max_order = 5;
   long max_num_steps = 100000000;  // per AdvanceTo call
+  // Total steps from Initialize; the run fails when a further step would be needed
+  // (0: no limit). A run that creeps with ever smaller steps (a singular configuration
+  // the corrector cannot pass, a stiffness beyond what the tolerances resolve) ends here
+  // instead of running for hours.
+  long max_steps = 1000000;
+  // The run fails after 20 steps in a row with h < min_relative_step * max(1, |t|): at
+  // such steps the time barely advances (1e-14 at t = 1 is 45 units in the last place
+  // of t). 20, because IDA's first step may be that small and doubles from there. 0: no
+  // such rule.
+  double min_relative_step = 1e-14;
 
   bool IsValid(std::string* error) const;
 };
