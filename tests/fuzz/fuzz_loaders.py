@@ -22,7 +22,7 @@ Failing inputs are copied to --out with the command and its output.
 The mutations come from one random.Random(--seed): the same seed and count give the
 same files, so a failure is reproduced by rerunning with the same arguments.
 
-    python3 tests/fuzz/fuzz_loaders.py --mbdae build/mbdae --count 3000
+    python3 tests/fuzz/fuzz_loaders.py --mbdae build/mbdae --count 1500 --seed 11
 """
 import argparse
 import os
