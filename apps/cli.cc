@@ -2,12 +2,20 @@
 
 #include "mbs/model_writer.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <optional>
 #include <sstream>
+#include <vector>
 
 namespace mbdae::app {
 namespace {
@@ -370,6 +378,67 @@ std::string ModelInfo::Json() const {
     s << (i ? ", " : "") << JsonString(parameters[i]) << ": " << Num(parameter_values[i]);
   s << "}\n}\n";
   return s.str();
+}
+
+bool SameFile(const std::string& a, const std::string& b) {
+  struct stat sa, sb;
+  if (stat(a.c_str(), &sa) != 0 || stat(b.c_str(), &sb) != 0) return false;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+ResultsDestination::ResultsDestination(const std::string& path, const std::string& input)
+    : path_(path), target_(path) {
+  auto directory_of = [](const std::string& file) -> std::string {
+    const auto slash = file.find_last_of('/');
+    return slash == std::string::npos ? "." : slash == 0 ? "/" : file.substr(0, slash);
+  };
+  // Write where a symbolic link points, also one to a file still to be made (renaming
+  // over the link would replace the link).
+  struct stat st;
+  for (int links = 0; lstat(target_.c_str(), &st) == 0 && S_ISLNK(st.st_mode); ++links) {
+    if (links == 40) Refuse(std::strerror(ELOOP));
+    std::vector<char> buffer(static_cast<size_t>(st.st_size > 0 ? st.st_size : 255) + 1);
+    const ssize_t n = readlink(target_.c_str(), buffer.data(), buffer.size() - 1);
+    if (n < 0) Refuse(std::strerror(errno));
+    const std::string next(buffer.data(), static_cast<size_t>(n));
+    target_ = next.empty() || next[0] == '/' ? next : directory_of(target_) + "/" + next;
+  }
+  if (stat(target_.c_str(), &st) == 0) {
+    if (!input.empty() && SameFile(target_, input))
+      throw UsageError("the results file '" + path + "' is the input file '" + input +
+                       "' itself: give another name with -o");
+    if (S_ISDIR(st.st_mode)) Refuse(std::strerror(EISDIR));
+    if (access(target_.c_str(), W_OK) != 0) Refuse(std::strerror(errno));
+  }
+  // The temporary file is created in the destination's directory and renamed there.
+  const std::string dir = directory_of(target_);
+  if (stat(dir.c_str(), &st) != 0) Refuse(std::strerror(errno));
+  if (!S_ISDIR(st.st_mode)) Refuse(std::strerror(ENOTDIR));
+  if (access(dir.c_str(), W_OK | X_OK) != 0) Refuse(std::strerror(errno));
+}
+
+void ResultsDestination::Refuse(const std::string& why) const {
+  throw UsageError("cannot write the results file '" + path_ + "': " + why);
+}
+
+const std::string& ResultsDestination::CreateTemporary() {
+  if (created_) return temporary_;
+  temporary_ = target_ + "." + std::to_string(static_cast<long>(getpid())) + ".tmp";
+  const int fd = open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0666);
+  if (fd < 0) Refuse(std::strerror(errno));
+  close(fd);
+  created_ = true;
+  return temporary_;
+}
+
+ResultsDestination::~ResultsDestination() {
+  if (created_ && !committed_) unlink(temporary_.c_str());
+}
+
+void ResultsDestination::Commit() {
+  if (std::rename(temporary_.c_str(), target_.c_str()) != 0)
+    throw std::runtime_error("cannot rename '" + temporary_ + "' to '" + path_ + "': " + std::strerror(errno));
+  committed_ = true;
 }
 
 }  // namespace mbdae::app

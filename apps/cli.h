@@ -90,4 +90,39 @@ ModelInfo Describe(const mbs::Model& model, const driver::Assembly& assembly);
 
 std::string JsonString(const std::string& s);  // quoted and escaped
 
+// True when a and b name the same existing file (same device and inode), whatever the
+// spelling: `./m.yaml` and `m.yaml`, other directories, symbolic and hard links.
+bool SameFile(const std::string& a, const std::string& b);
+
+// Where a run's results file goes. The file is written under a temporary name beside
+// its destination (temporary()) and renamed over it by Commit() when the run ends
+// (done, failed or interrupted), so that an earlier file of that name stays whole until
+// then; the destructor removes the temporary file of a run that did not get there. A
+// process killed outright (SIGKILL) leaves the earlier file and the temporary one.
+class ResultsDestination {
+ public:
+  // Checks that `path` may be written (its directory, and the file if it exists) and is
+  // not the input file `input` (a model or a problem file). A destination that is a
+  // symbolic link is written through it (the link is kept). Throws UsageError naming the
+  // path, with the system's reason (strerror) when the system refuses.
+  ResultsDestination(const std::string& path, const std::string& input);
+  ~ResultsDestination();
+  ResultsDestination(const ResultsDestination&) = delete;
+  ResultsDestination& operator=(const ResultsDestination&) = delete;
+
+  // Creates the empty temporary file PATH.PID.tmp beside the destination and returns its
+  // name. Throws UsageError with the system's reason.
+  const std::string& CreateTemporary();
+  const std::string& path() const { return path_; }  // as given
+  const std::string& temporary() const { return temporary_; }
+  // Renames the temporary file over the destination. Throws std::runtime_error with the
+  // system's reason.
+  void Commit();
+
+ private:
+  [[noreturn]] void Refuse(const std::string& why) const;
+  std::string path_, target_, temporary_;
+  bool created_ = false, committed_ = false;
+};
+
 }  // namespace mbdae::app

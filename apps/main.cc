@@ -10,10 +10,13 @@
 // MODEL may be a FreeDyn model file (.fds, any letter case) for every command.
 // Output: progress on stderr, the summary and `info`/`check` reports on stdout, errors
 // on stderr prefixed "mbdae: error: ". Exit codes: 0 done, 2 bad input (nothing
-// written), 3 solver failed (file kept, status failed), 1 anything else.
+// written), 3 solver failed (file kept, status failed), 128 + N a simulation stopped by
+// signal N (SIGINT: 130, SIGTERM: 143; file kept, status interrupted), 1 anything else.
+#include <signal.h>
 #include <unistd.h>
 
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -120,6 +123,27 @@ void PrintError(const std::string& message) {
   std::fprintf(stderr, "mbdae: error: %s\n", message.c_str());
 }
 
+// The signal that asked a simulation to stop (0: none). The handler only sets it and
+// restores the default action, so that a second signal ends the process at once.
+volatile std::sig_atomic_t stop_signal = 0;
+
+extern "C" void OnStopSignal(int signal_number) { stop_signal = signal_number; }
+
+void CatchStopSignals() {
+  struct sigaction action {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = SA_RESETHAND;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+std::string TimeText(double t) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.12g", t);
+  return text;
+}
+
 void RequireReadable(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw UsageError(path + ": cannot open the model file");
@@ -161,7 +185,7 @@ int RunCheck(const CommandLine& cl) {
 }
 
 int RunConvert(const CommandLine& cl) {
-  if (!cl.output_path.empty() && cl.output_path == cl.model_path)
+  if (!cl.output_path.empty() && (cl.output_path == cl.model_path || SameFile(cl.output_path, cl.model_path)))
     throw UsageError("convert: the output file is the model file itself ('" + cl.model_path + "')");
   const mbs::Model model = Load(cl);
   mbs::ModelWriterOptions wo;
@@ -176,6 +200,10 @@ int RunConvert(const CommandLine& cl) {
 }
 
 int RunSimulate(const CommandLine& cl) {
+  // Before anything else: the results file can be written (and is not the model).
+  RequireReadable(cl.model_path);
+  ResultsDestination destination(cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path,
+                                 cl.model_path);
   mbs::Model model = Load(cl);
   mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
   driver::Assembly asmb = driver::Assemble(model);
@@ -190,7 +218,9 @@ int RunSimulate(const CommandLine& cl) {
   }
   driver::SimulationOptions so;
   so.model_path = cl.model_path;
-  so.results_path = cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path;
+  CatchStopSignals();
+  so.results_path = destination.CreateTemporary();
+  so.stop = [] { return stop_signal != 0; };
   // Flushing costs about 0.3 ms a row: at most five times a second, so a killed run
   // loses at most the last 0.2 s of computing; failures and the end always flush.
   so.flush_interval = 0.2;
@@ -200,18 +230,27 @@ int RunSimulate(const CommandLine& cl) {
   so.progress = [&progress](double t, double t_end) { progress.Update(t, t_end); };
   driver::SimulationSummary summary = driver::Simulate(model, asmb, settings, so);
   progress.Finish();
+  destination.Commit();
+  summary.results_path = destination.path();
   if (!cl.quiet) std::cout << summary.FullReport() << std::flush;
+  if (summary.status == driver::SimulationSummary::Status::kInterrupted) {
+    const int signal_number = stop_signal;
+    PrintError(std::string("interrupted by ") + (signal_number == SIGINT ? "SIGINT" : "SIGTERM") +
+               " at t = " + TimeText(summary.t_reached) + "; the results up to there are in " +
+               destination.path());
+    return 128 + signal_number;
+  }
   if (summary.status != driver::SimulationSummary::Status::kDone) {
-    char t_text[32];
-    std::snprintf(t_text, sizeof t_text, "%.9g", summary.t_reached);
-    PrintError(std::string("the solver failed at t = ") + t_text + ": " +
-               summary.failure_reason + "; the results up to there are in " + so.results_path);
+    PrintError("the solver failed at t = " + TimeText(summary.t_reached) + ": " + summary.failure_reason +
+               "; the results up to there are in " + destination.path());
     return 3;
   }
   return 0;
 }
 
 int RunGradient(const CommandLine& cl) {
+  if (!cl.output_path.empty() && SameFile(cl.output_path, cl.model_path))
+    throw UsageError("the results file '" + cl.output_path + "' is the model file itself: give another name with -o");
   mbs::Model model = Load(cl);
   mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
   driver::GradientRequest request;
@@ -254,6 +293,8 @@ int RunOptimize(const CommandLine& cl) {
   const driver::OptimizationProblem problem = driver::LoadOptimizationProblem(cl.model_path);
   driver::OptimizeOptions oo;
   oo.results_path = cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path;
+  if (SameFile(oo.results_path, cl.model_path))
+    throw UsageError("the results file '" + oo.results_path + "' is the problem file itself: give another name with -o");
   if (!cl.quiet)
     oo.iteration = [](const driver::OptimizationIteration& it) {
       if (it.iteration % 20 == 0)
