@@ -104,9 +104,10 @@ const char* KindName(mbdae_kind kind) {
   return "?";
 }
 
-void CheckKind(mbdae_kind kind) {
-  if (static_cast<int>(kind) < 0 || static_cast<int>(kind) >= mbdae_model::kNumKinds)
-    throw ApiError(MBDAE_ERROR_ARGUMENT, "unknown kind " + std::to_string(static_cast<int>(kind)));
+void CheckKind(const mbdae_kind& kind) {
+  const int k = EnumInt(kind);
+  if (k < 0 || k >= mbdae_model::kNumKinds)
+    throw ApiError(MBDAE_ERROR_ARGUMENT, "unknown kind " + std::to_string(k));
 }
 
 void CheckIndex(int index, int count, const char* what) {
@@ -184,8 +185,10 @@ void StoreRow(mbdae_model& m, const dae::State& x) {
   row.t = x.t;
   row.q = x.q;
   row.v = x.v;
-  row.a = x.a;
-  row.lambda = x.lambda;
+  // a and lambda as the results file has them (the row builder's: solved from (t, q, v)
+  // or the integrator's, by the setting output_accelerations).
+  row.a.assign(r.a, r.a + x.a.size());
+  row.lambda.assign(r.lambda, r.lambda + x.lambda.size());
   row.measures.assign(r.measures, r.measures + m.row_builder->num_measures());
   row.body_data.assign(r.body_data, r.body_data + 13 * nb);
   row.joint_data.assign(r.joint_data, r.joint_data + 6 * m.row_builder->num_joints());
@@ -241,7 +244,7 @@ void Assemble(mbdae_model& m) {
   m.state = assembly->x0;
   m.assembly = std::move(assembly);
   m.integrator = std::move(integrator);
-  m.row_builder = std::make_unique<driver::OutputRowBuilder>(*m.model, *m.assembly);
+  m.row_builder = std::make_unique<driver::OutputRowBuilder>(*m.model, *m.assembly, m.settings);
   StoreRow(m, m.state);
   m.next_output = 1;
 }
@@ -603,6 +606,7 @@ void EnsureAssembled(mbdae_model& m) {
 
 using mbdae::api::ApiError;
 using mbdae::api::Call;
+using mbdae::api::CheckEnum;
 using mbdae::api::CheckIndex;
 using mbdae::api::CheckSize;
 using mbdae::api::Handle;
@@ -656,6 +660,7 @@ void mbdae_model_free(mbdae_model* model) { delete model; }
 
 mbdae_status mbdae_count(mbdae_model* model, mbdae_kind kind, int* count) {
   return Call([&] {
+    mbdae::api::CheckKind(kind);
     mbdae_model& m = Handle(model);
     NotNull(count, "count");
     *count = mbdae::api::Count(m, kind);
@@ -664,6 +669,7 @@ mbdae_status mbdae_count(mbdae_model* model, mbdae_kind kind, int* count) {
 
 mbdae_status mbdae_name(mbdae_model* model, mbdae_kind kind, int index, const char** name) {
   return Call([&] {
+    mbdae::api::CheckKind(kind);
     mbdae_model& m = Handle(model);
     NotNull(name, "name");
     const auto& names = mbdae::api::Names(m, kind);
@@ -674,6 +680,7 @@ mbdae_status mbdae_name(mbdae_model* model, mbdae_kind kind, int index, const ch
 
 mbdae_status mbdae_find(mbdae_model* model, mbdae_kind kind, const char* name, int* index) {
   return Call([&] {
+    mbdae::api::CheckKind(kind);
     mbdae_model& m = Handle(model);
     NotNull(name, "name");
     NotNull(index, "index");
@@ -882,6 +889,7 @@ mbdae_status mbdae_set_state(mbdae_model* model, double t, const double* q, cons
 
 mbdae_status mbdae_get_output(mbdae_model* model, int row, mbdae_output what, double* out, int n) {
   return Call([&] {
+    CheckEnum(what, MBDAE_OUT_BODY_POSES + 1, "mbdae_get_output", "mbdae_output");
     mbdae_model& m = Handle(model);
     NotNull(out, "out");
     if (m.rows.empty())
@@ -939,6 +947,7 @@ mbdae_status mbdae_measure_gradient(mbdae_model* model, int measure, double* dq,
 
 mbdae_status mbdae_get_vector(mbdae_model* model, mbdae_vector which, double* out, int n) {
   return Call([&] {
+    CheckEnum(which, MBDAE_VEC_CONSTRAINTS_DTT + 1, "mbdae_get_vector", "mbdae_vector");
     mbdae_model& m = Handle(model);
     NotNull(out, "out");
     mbdae::api::GetVector(m, which, out, n);
@@ -959,6 +968,7 @@ mbdae_status mbdae_get_matrix(mbdae_model* model, const mbdae_block* blocks, int
                               int rows, int cols, mbdae_sparse_format format, int* nnz,
                               int* ptr, int* idx, double* val) {
   return Call([&] {
+    CheckEnum(format, MBDAE_CSR + 1, "mbdae_get_matrix: format", "mbdae_sparse_format (MBDAE_CSC, MBDAE_CSR)");
     mbdae_model& m = Handle(model);
     NotNull(nnz, "nnz");
     if (num_blocks > 0) NotNull(blocks, "blocks");
@@ -982,6 +992,7 @@ mbdae_status mbdae_gradient(mbdae_model* model, const char* method,
 mbdae_status mbdae_get_gradient(mbdae_model* model, mbdae_gradient_output what, double* out,
                                 int n) {
   return Call([&] {
+    CheckEnum(what, MBDAE_GRAD_COUNTERS + 1, "mbdae_get_gradient", "mbdae_gradient_output");
     const mbdae_model& m = Handle(model);
     NotNull(out, "out");
     mbdae::api::GetGradient(m, what, out, n);

@@ -11,6 +11,7 @@
 // MBDAE_ERROR_INPUT, std::bad_alloc and anything else MBDAE_ERROR_INTERNAL.
 #pragma once
 
+#include <cstring>
 #include <functional>
 #include <map>
 #include <memory>
@@ -37,6 +38,28 @@ class ApiError : public std::runtime_error {
  private:
   mbdae_status status_;
 };
+
+// The integer a C caller passed for an enum of the API, read without loading it as the
+// enum type: a value outside the enumeration's range is undefined behaviour when loaded
+// as the enum (UBSan: "load of value ... which is not a valid value"), so every
+// function checks the int first and uses the enum only once it is one of the
+// enumerators.
+template <typename Enum>
+int EnumInt(const Enum& value) {
+  static_assert(sizeof(Enum) == sizeof(int), "the API's enums are ints");
+  int i;
+  std::memcpy(&i, &value, sizeof i);
+  return i;
+}
+
+// Throws ApiError(MBDAE_ERROR_ARGUMENT) "WHAT: V is not an ENUM_NAME (0 .. count - 1)".
+template <typename Enum>
+void CheckEnum(const Enum& value, int count, const char* what, const char* enum_name) {
+  const int i = EnumInt(value);
+  if (i < 0 || i >= count)
+    throw ApiError(MBDAE_ERROR_ARGUMENT, std::string(what) + ": " + std::to_string(i) + " is not an " +
+                                             enum_name + " (0 .. " + std::to_string(count - 1) + ")");
+}
 
 // One stored output row: the state, and everything the results file holds of it (so
 // that mbdae_write_results needs neither the model nor the assembly of the run).

@@ -252,12 +252,11 @@ void GetVector(mbdae_model& m, mbdae_vector which, double* out, int n) {
   EnsureAssembled(m);
   dae::MechanicalSystem& sys = Kept(m);
   const int nq = sys.num_coordinates(), nc = sys.num_constraints();
-  const bool q_sized = which >= MBDAE_VEC_MASS_TIMES_ACC && which <= MBDAE_VEC_SUM_OF_FORCES;
-  const bool c_sized = which >= MBDAE_VEC_CONSTRAINTS && which <= MBDAE_VEC_CONSTRAINTS_DTT;
+  const int w = EnumInt(which);
+  const bool q_sized = w >= MBDAE_VEC_MASS_TIMES_ACC && w <= MBDAE_VEC_SUM_OF_FORCES;
+  const bool c_sized = w >= MBDAE_VEC_CONSTRAINTS && w <= MBDAE_VEC_CONSTRAINTS_DTT;
   if (!q_sized && !c_sized)
-    throw ApiError(MBDAE_ERROR_ARGUMENT,
-                   "mbdae_get_vector: " + std::to_string(static_cast<int>(which)) +
-                       " is not an mbdae_vector (0 .. 8)");
+    throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_vector: " + std::to_string(w) + " is not an mbdae_vector (0 .. 8)");
   CheckLength(n, q_sized ? nq : nc,
               std::string("mbdae_get_vector (") +
                   (q_sized ? "one value per coordinate)" : "one value per multiplier)"));
@@ -327,10 +326,9 @@ void GetMatrix(mbdae_model& m, const mbdae_block* blocks, int num_blocks, int ro
   if (rows < 0 || cols < 0)
     throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_matrix: the size " + std::to_string(rows) +
                                              " x " + std::to_string(cols) + " is negative");
-  if (format != MBDAE_CSC && format != MBDAE_CSR)
-    throw ApiError(MBDAE_ERROR_ARGUMENT,
-                   "mbdae_get_matrix: format " + std::to_string(static_cast<int>(format)) +
-                       " is neither MBDAE_CSC (0) nor MBDAE_CSR (1)");
+  if (EnumInt(format) != MBDAE_CSC && EnumInt(format) != MBDAE_CSR)
+    throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_matrix: format " + std::to_string(EnumInt(format)) +
+                                             " is neither MBDAE_CSC (0) nor MBDAE_CSR (1)");
   const bool query = !ptr && !idx && !val;
   if (!query && !(ptr && idx && val))
     throw ApiError(MBDAE_ERROR_ARGUMENT,
@@ -340,7 +338,7 @@ void GetMatrix(mbdae_model& m, const mbdae_block* blocks, int num_blocks, int ro
   // Check every block before evaluating anything.
   for (int b = 0; b < num_blocks; ++b) {
     const mbdae_block& blk = blocks[b];
-    const int w = static_cast<int>(blk.which);
+    const int w = EnumInt(blk.which);
     if (w < 0 || w >= kNumApiMatrices)
       throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_matrix: block " + std::to_string(b) +
                                                ": " + std::to_string(w) +
