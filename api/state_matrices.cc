@@ -326,6 +326,11 @@ void GetMatrix(mbdae_model& m, const mbdae_block* blocks, int num_blocks, int ro
   if (rows < 0 || cols < 0)
     throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_matrix: the size " + std::to_string(rows) +
                                              " x " + std::to_string(cols) + " is negative");
+  // ptr has rows + 1 (CSR) or cols + 1 (CSC) entries, counted by an int.
+  if (rows == std::numeric_limits<int>::max() || cols == std::numeric_limits<int>::max())
+    throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_matrix: the size " + std::to_string(rows) + " x " +
+                                             std::to_string(cols) + " is too large (ptr needs " +
+                                             "rows + 1 or cols + 1 entries)");
   if (EnumInt(format) != MBDAE_CSC && EnumInt(format) != MBDAE_CSR)
     throw ApiError(MBDAE_ERROR_ARGUMENT, "mbdae_get_matrix: format " + std::to_string(EnumInt(format)) +
                                              " is neither MBDAE_CSC (0) nor MBDAE_CSR (1)");

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cassert>
+#include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace mbdae::dae {
 
@@ -21,9 +23,9 @@ bool CscPattern::IsValid(std::string* error) const {
     return false;
   };
   if (rows < 0 || cols < 0) return fail("negative dimensions");
-  if (static_cast<int>(col_start.size()) != cols + 1)
+  if (col_start.size() != static_cast<size_t>(cols) + 1)
     return fail("col_start has " + std::to_string(col_start.size()) + " entries, expected " +
-                std::to_string(cols + 1));
+                std::to_string(static_cast<long long>(cols) + 1));
   if (col_start[0] != 0) return fail("col_start[0] is not 0");
   if (col_start[cols] != nnz())
     return fail("col_start[cols] = " + std::to_string(col_start[cols]) + " but nnz = " +
@@ -46,6 +48,10 @@ bool CscPattern::IsValid(std::string* error) const {
 CscPattern CscPattern::FromEntries(int rows, int cols,
                                    std::vector<std::pair<int, int>> entries) {
   if (rows < 0 || cols < 0) throw std::invalid_argument("CscPattern::FromEntries: negative size");
+  // col_start has cols + 1 entries, indexed by int.
+  if (cols == std::numeric_limits<int>::max())
+    throw std::invalid_argument("CscPattern::FromEntries: " + std::to_string(cols) +
+                                " columns are too many (col_start needs cols + 1 entries)");
   for (const auto& e : entries)
     if (e.first < 0 || e.first >= rows || e.second < 0 || e.second >= cols)
       throw std::invalid_argument("CscPattern::FromEntries: entry (" + std::to_string(e.first) +

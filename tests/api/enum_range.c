@@ -79,6 +79,12 @@ int main(int argc, char** argv) {
     }
   }
 
+  /* A size of INT_MAX would need INT_MAX + 1 pointers (it overflowed int). */
+  ExpectRefused(mbdae_get_matrix(model, NULL, 0, INT_MAX, 2, MBDAE_CSR, &nnz, NULL, NULL, NULL), INT_MAX,
+                "mbdae_get_matrix (rows)");
+  ExpectRefused(mbdae_get_matrix(model, NULL, 0, 2, INT_MAX, MBDAE_CSC, &nnz, NULL, NULL, NULL), INT_MAX,
+                "mbdae_get_matrix (cols)");
+
   /* The enumerators themselves still work. */
   CHECK(mbdae_count(model, MBDAE_BODIES, &count) == MBDAE_OK && count == 1, "bodies: %d (%s)", count,
         mbdae_last_error());
