@@ -372,7 +372,7 @@ class IdaIntegrator final : public Integrator {
     for (long steps_this_call = 0;;) {
       if (options_.max_steps > 0 && summary_.steps_accepted >= options_.max_steps)
         return Fail("IDA: the step budget of " + std::to_string(options_.max_steps) +
-                    " steps (ida max_steps) is used up at t = " + ToString(state_.t) +
+                    " steps is used up at t = " + ToString(state_.t) +
                     " with h = " + ToString(summary_.h_last) + ", before t = " + ToString(t_target));
       if (steps_this_call++ >= options_.max_num_steps) {
         return Fail("IDA failed at t = " + ToString(state_.t) + " with IDA_TOO_MUCH_WORK (more than " +
@@ -388,7 +388,7 @@ class IdaIntegrator final : public Integrator {
       tiny_steps_ = h < options_.min_relative_step * std::max(1.0, std::abs(t_ret)) ? tiny_steps_ + 1 : 0;
       if (tiny_steps_ >= kTinyStepsToFail)
         return Fail("IDA: the step size fell to h = " + ToString(h) + " at t = " + ToString(t_ret) +
-                    ", below " + ToString(options_.min_relative_step) + " max(1, |t|) (ida min_relative_step) for " +
+                    ", below " + ShortNumber(options_.min_relative_step) + " max(1, |t|) for " +
                     std::to_string(kTinyStepsToFail) +
                     " steps in a row: the time no longer advances (a singular configuration or a "
                     "discontinuity the corrector cannot pass, or a stiffness the tolerances do not "
@@ -441,6 +441,11 @@ class IdaIntegrator final : public Integrator {
   static std::string ToString(double x) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.17g", x);
+    return buf;
+  }
+  static std::string ShortNumber(double x) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", x);
     return buf;
   }
 
