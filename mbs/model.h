@@ -211,9 +211,10 @@ struct SimulationSettings {
   // The residual of the step: "equilibrium" (generalized-alpha with HHT's parameters) or
   // "negrut" (Negrut et al. 2007); see docs/hht.md.
   std::string hht_form = "equilibrium";
-  // The start of the equilibrium form: "perturbed" (abar_0 = a(t_0 + alpha h) to second
-  // order, no start-up oscillation of the multipliers) or "consistent" (abar_0 = a_0).
-  std::string hht_start = "perturbed";
+  // The start of the equilibrium form: "consistent" (abar_0 = a_0, the start the
+  // gradient runs differentiate) or "perturbed" (the smooth solution's abar_0 and v_0: no
+  // start-up oscillation of the multipliers); dae/hht.h HhtOptions::Start.
+  std::string hht_start = "consistent";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // a and lambda of the output rows: "solved" (the acceleration-level equations
