@@ -116,8 +116,13 @@ const char* kHelp =
     "\n"
     "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md).\n"
     "\n"
+    "The results file is written as RESULTS.PID.tmp beside it and renamed when the run\n"
+    "ends; an earlier file of that name stays whole until then. SIGTERM or SIGINT stops\n"
+    "the run after the current step (status 'interrupted', the rows kept).\n"
+    "\n"
     "exit codes: 0 done; 2 bad input (nothing written); 3 the solver failed (the rows up\n"
-    "to the failure are kept, status 'failed'); 1 anything else.\n";
+    "to the failure are kept, status 'failed'); 130 / 143 (128 + signal) simulate stopped\n"
+    "by SIGINT / SIGTERM; 1 anything else.\n";
 
 void PrintError(const std::string& message) {
   std::fprintf(stderr, "mbdae: error: %s\n", message.c_str());
