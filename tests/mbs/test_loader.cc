@@ -272,7 +272,7 @@ TEST(Loader, InertiaChecks) {
   };
   EXPECT_EQ(LoadError(body("[1, 2, 2.5]")), "");
   EXPECT_EQ(LoadError(body("[0, 0, 0]")), "");  // point mass
-  EXPECT_EQ(LoadError(body("[1, 1, 0, 1, 0, 0]")), "");  // singular, semi-definite
+  EXPECT_EQ(LoadError(body("[1, 1, 2, -1, 0, 0]")), "");  // singular, semi-definite: a thin rod along (1, 1, 0)
   const std::string neg = LoadError(body("[1, 1, 1, 2, 0, 0]"));  // eigenvalues -1, 1, 3
   EXPECT_TRUE(Contains(neg, "m.yaml:3:33: body 'b': inertia is not positive semi-definite (smallest eigenvalue -1)")) << neg;
   EXPECT_TRUE(Contains(LoadError(body("[1, 1]")), "'inertia' must have 3 or 6 entries, got 2"));

@@ -174,7 +174,7 @@ gravity: [0, "-g", "0.01*m"]
 bodies:
   - name: a
     mass: m
-    inertia: ["0.1*m", "0.2*m2", 0.3, "0.01*k/100", 0, "0.001*w"]
+    inertia: ["0.4 + 0.1*m", "0.2*m2", 0.5, "0.01*k/100", 0, "0.001*w"]
     position: ["L", 0, "amp"]
     orientation: {axis: [0, "1 + amp", 1], angle: "0.3*w"}
     velocity: [0, "w*L", 0]
@@ -360,8 +360,8 @@ TEST(SystemParameterDerivatives, RandomModels) {
 parameters: {k: %.6g, c: %.6g, m: %.6g, r: "%.3g*k + c"}
 gravity: [0, 0, "-9.81*m"]
 bodies:
-  - {name: a, mass: "m*%.3g", inertia: ["r", "m", "c"], position: [%.3g, "c", 0], velocity: ["r", 0, 1], angular_velocity: ["k", "m", 0]}
-  - {name: b, mass: "r", inertia: [1, "r", 2], position: [0, 1, "%.3g*k"], orientation: {axis: ["c", 1, "m"], angle: "r"}}
+  - {name: a, mass: "m*%.3g", inertia: ["m + c", "r + c", "r + m"], position: [%.3g, "c", 0], velocity: ["r", 0, 1], angular_velocity: ["k", "m", 0]}
+  - {name: b, mass: "r", inertia: ["1 + r", "1 + r", 2], position: [0, 1, "%.3g*k"], orientation: {axis: ["c", 1, "m"], angle: "r"}}
 measures:
   - {name: d, type: translational, i: a.cm, j: b.cm, component: %s}
 joints:
@@ -423,7 +423,7 @@ splines:
 gravity: [0, "-9 - 0.1*a", "0.01*c"]
 bodies:
   - {name: b0, mass: "1 + 0.1*b", inertia: ["a/10", "c/10", 0.3, 0.01, "0.001*p", 0], position: [0, 0, 0]}
-  - {name: b1, mass: "2 + 0.1*c", inertia: ["a/10", 0.2, "b/10"], position: [0.6, 0, 0]}
+  - {name: b1, mass: "2 + 0.1*c", inertia: ["a/10", 0.3, "b/10"], position: [0.6, 0, 0]}
   - {name: b2, mass: "1 + p*p", inertia: [0.2, 0.2, 0.3], position: [1.2, 0.1, 0]}
   - {name: b3, mass: other, inertia: [0.2, "other", 0.3], position: [1.8, 0, 0.2]}
 measures:

@@ -20,7 +20,7 @@ ground:
 bodies:
   - name: top
     mass: 2.0
-    inertia: [0.02, 0.03, 0.05, 0.001, -0.002, 0.003]
+    inertia: [0.02, 0.03, 0.045, 0.001, -0.002, 0.003]
     position: [0, 0, 0.2]
     orientation: {axis: [1, 1, 0], angle: 0.3}
     angular_velocity: [1, -2, 5]

@@ -87,7 +87,7 @@ parameters: {alpha: 3.0}
 bodies:
   - name: rotor
     mass: 2
-    inertia: [0.1, 0.2, 0.4]
+    inertia: [0.2, 0.2, 0.4]
     position: [0.1, 0, 0]
     markers:
       o: {position: [-0.1, 0, 0]}
