@@ -45,6 +45,13 @@ bool IdaOptions::IsValid(std::string* error) const {
 
 namespace internal {
 
+std::string IdaFlagName(int flag) {
+  char* name = IDAGetReturnFlagName(flag);
+  std::string out = name ? name : "IDA flag " + std::to_string(flag);
+  std::free(name);
+  return out;
+}
+
 GglResidual::GglResidual(MechanicalSystem& system)
     : system_(system), nq_(system.num_coordinates()), nc_(system.num_constraints()) {
   const int nq = nq_, nc = nc_;
@@ -449,13 +456,7 @@ class IdaIntegrator final : public Integrator {
     return buf;
   }
 
-  // IDAGetReturnFlagName returns a string it allocated with malloc.
-  static std::string FlagName(int flag) {
-    char* name = IDAGetReturnFlagName(flag);
-    std::string out = name ? name : "IDA flag " + std::to_string(flag);
-    std::free(name);
-    return out;
-  }
+  static std::string FlagName(int flag) { return internal::IdaFlagName(flag); }
 
   static void Check(int flag, const char* what) {
     if (flag != IDA_SUCCESS)

@@ -18,6 +18,10 @@
 
 namespace mbdae::dae::internal {
 
+// The name of an IDA(S) return flag ("IDA_CONV_FAIL"). IDAGetReturnFlagName returns a
+// string it allocated; this copies and frees it.
+std::string IdaFlagName(int flag);
+
 class GglResidual {
  public:
   explicit GglResidual(MechanicalSystem& system);

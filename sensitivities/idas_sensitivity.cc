@@ -212,7 +212,7 @@ class IdasSensitivitySolver {
   void ThrowIf(int flag, const char* what) {
     if (flag < 0)
       throw std::runtime_error(std::string("IDAS: ") + what + " failed with " +
-                               IDAGetReturnFlagName(flag) +
+                               dae::internal::IdaFlagName(flag) +
                                (ida_error_.empty() ? std::string() : " (" + ida_error_ + ")"));
   }
 
@@ -307,7 +307,7 @@ class IdasSensitivitySolver {
       } else {
         flag = IDASolve(mem, t_out, &t, y_.get(), yp_.get(), IDA_NORMAL);
       }
-      if (flag < 0) return Fail("the forward run failed at t = " + Num(t) + " with " + IDAGetReturnFlagName(flag));
+      if (flag < 0) return Fail("the forward run failed at t = " + Num(t) + " with " + dae::internal::IdaFlagName(flag));
     }
     t_final_ = t;
     IDAGetNumSteps(mem, &result->steps);
@@ -647,7 +647,7 @@ class IdasSensitivitySolver {
 
     callback_error_.clear();
     const int flag = IDASolveB(mem, x0.t, IDA_NORMAL);
-    if (flag < 0) return Fail(std::string("the backward run failed with ") + IDAGetReturnFlagName(flag));
+    if (flag < 0) return Fail(std::string("the backward run failed with ") + dae::internal::IdaFlagName(flag));
 
     // Sensitivities of the initial state enter through (F_y'^T chi)^T s at t0.
     std::vector<double> mdv(static_cast<size_t>(nq_) * np_, 0.0);
