@@ -129,10 +129,10 @@ def test_a_refused_run_leaves_the_earlier_file(tmp_path):
     assert leftovers(tmp_path) == []
 
 
-def start_long_run(tmp_path, model, out):
-    """mbdae simulate of a run of 1e5 s (HHT, 1e8 steps), returns the process once the
+def start_long_run(tmp_path, model, out, integrator):
+    """mbdae simulate of a run of 1e5 s (HHT: 1e8 steps), returns the process once the
     temporary results file exists (the run is then integrating or about to)."""
-    proc = subprocess.Popen([MBDAE, "simulate", model, "-o", out, "--integrator", "hht",
+    proc = subprocess.Popen([MBDAE, "simulate", model, "-o", out, "--integrator", integrator,
                              "--t-end", "1e5", "--output-step", "0.01", "--quiet"],
                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for _ in range(600):
@@ -144,13 +144,15 @@ def start_long_run(tmp_path, model, out):
     return proc
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
-def test_signal_stops_the_run_and_keeps_the_rows(tmp_path, signum):
+@pytest.mark.parametrize("signum,integrator", [(signal.SIGTERM, "hht"), (signal.SIGINT, "hht"),
+                                               (signal.SIGTERM, "ida")],
+                         ids=["SIGTERM-hht", "SIGINT-hht", "SIGTERM-ida"])
+def test_signal_stops_the_run_and_keeps_the_rows(tmp_path, signum, integrator):
     model = copy_model("pendulum.yaml", tmp_path)
     # An earlier results file of that name: whole and readable until the new run ends.
     p = run(["simulate", model, "-o", "run.h5", "--t-end", "0.2", "--quiet"], tmp_path)
     assert p.returncode == 0, p.stderr
-    proc = start_long_run(tmp_path, model, "run.h5")
+    proc = start_long_run(tmp_path, model, "run.h5", integrator)
     with h5py.File(tmp_path / "run.h5", "r") as f:
         assert as_str(f.attrs["status"]) == "done" and f["time"][-1] == 0.2
     # Rows are being written to the temporary file: wait for a few (time.sleep only
@@ -174,3 +176,4 @@ def test_signal_stops_the_run_and_keeps_the_rows(tmp_path, signum):
         assert t_reached < 1e5
         assert f["q"].shape[0] == len(times)
         assert "failure_reason" not in f.attrs
+        assert as_str(f.attrs["integrator"]) == integrator
