@@ -425,7 +425,7 @@ bodies:
   - {name: b0, mass: "1 + 0.1*b", inertia: ["a/10", "c/10", 0.3, 0.01, "0.001*p", 0], position: [0, 0, 0]}
   - {name: b1, mass: "2 + 0.1*c", inertia: ["a/10", 0.3, "b/10"], position: [0.6, 0, 0]}
   - {name: b2, mass: "1 + p*p", inertia: [0.2, 0.2, 0.3], position: [1.2, 0.1, 0]}
-  - {name: b3, mass: other, inertia: [0.2, "other", 0.3], position: [1.8, 0, 0.2]}
+  - {name: b3, mass: other, inertia: [0.5, "other", 0.3], position: [1.8, 0, 0.2]}
 measures:
   - {name: ang, type: rotational, i: b0.cm, axis: z}
   - {name: d, type: translational, i: b1.cm, j: b2.cm, component: distance}
