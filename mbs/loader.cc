@@ -296,6 +296,27 @@ class Loader {
     return e;
   }
 
+  // A force value (ParseRunTime). One that uses no measure is evaluated at t = 0 here and
+  // refused where it is written if it is not finite (`what` names it: "'value' entry 1");
+  // one over measures is checked at the initial state when the system is built.
+  Expression ForceValue(const YAML::Node& node, const std::string& element, const std::string& what) const {
+    const std::string key = what.substr(1, what.find('\'', 1) - 1);
+    Expression e = ParseRunTime(node, element, key);
+    if (e.depends_on_state()) return e;
+    std::vector<const Spline*> splines;
+    for (const SplineDef& sp : model_.splines) splines.push_back(&sp.spline);
+    ExpressionInputs in;
+    in.t = 0;
+    in.parameters = values_.data();
+    in.splines = splines.empty() ? nullptr : splines.data();
+    const double x = e.Evaluate(in);
+    if (!std::isfinite(x)) {
+      Fail(node, element, what + " ('" + node.Scalar() + "') is " + Num(x) +
+                              " at the initial state of the model file (t = 0); a force value must be finite");
+    }
+    return e;
+  }
+
   // A measure of a motion or gear joint, by name: position level (a rotational angle if
   // `rotational`).
   int PositionMeasure(const YAML::Node& node, const std::string& element, const std::string& key,
@@ -1109,10 +1130,10 @@ class Loader {
       if (type == kSpring) {
         force.type = ForceType::kSpringDamper;
         CheckKeys(n, element, {"name", "type", "i", "j", "stiffness", "damping", "free_length", "preload"});
-        force.stiffness = ParseRunTime(Required(n, element, "stiffness"), element, "stiffness");
-        force.free_length = ParseRunTime(Required(n, element, "free_length"), element, "free_length");
-        force.damping = n["damping"] ? ParseRunTime(n["damping"], element, "damping") : Expression::Constant(0);
-        force.preload = n["preload"] ? ParseRunTime(n["preload"], element, "preload") : Expression::Constant(0);
+        force.stiffness = ForceValue(Required(n, element, "stiffness"), element, "'stiffness'");
+        force.free_length = ForceValue(Required(n, element, "free_length"), element, "'free_length'");
+        force.damping = n["damping"] ? ForceValue(n["damping"], element, "'damping'") : Expression::Constant(0);
+        force.preload = n["preload"] ? ForceValue(n["preload"], element, "'preload'") : Expression::Constant(0);
       } else if (type == kBushing) {
         force.type = ForceType::kBushing;
         CheckKeys(n, element, {"name", "type", "i", "j", "stiffness", "damping"});
@@ -1162,7 +1183,9 @@ class Loader {
           Fail(value, element, "'value' must be a list of 3 numbers or expressions, got " +
                                    (value.IsSequence() ? std::to_string(value.size()) + " entries" : Kind(value)));
         }
-        for (int c = 0; c < 3; ++c) force.value[c] = ParseRunTime(value[c], element, "value");
+        for (int c = 0; c < 3; ++c) {
+          force.value[c] = ForceValue(value[c], element, "'value' entry " + std::to_string(c + 1));
+        }
       }
       force.i = Marker(Required(n, element, "i"), element, "i");
       force.j = n["j"] ? Marker(n["j"], element, "j") : 0;

@@ -187,23 +187,35 @@ std::string SystemError(const Model& model) {
 }
 
 TEST(ForceValues, NotFiniteAtTheInitialStateIsAModelError) {
-  EXPECT_EQ(SystemError(PushedBody("sqrt(-1)")),
-            "m.yaml:7:5: force 'push': 'value' entry 1 ('sqrt(-1)') is nan at the initial state of the model file "
+  // Values without measures: refused by the loader where they are written.
+  const std::string head = "format: 1\nbodies:\n  - {name: s, mass: 1, inertia: [1, 1, 1], position: [1, 0, 0]}\n"
+                           "forces:\n  - {name: push, type: force, i: s.cm, value: [";
+  EXPECT_EQ(LoadError(head + "\"sqrt(-1)\", 0, 0]}\n"),
+            "m.yaml:5:48: force 'push': 'value' entry 1 ('sqrt(-1)') is nan at the initial state of the model file "
             "(t = 0); a force value must be finite");
+  EXPECT_EQ(LoadError(head + "0, \"-1/t\", 0]}\n"),
+            "m.yaml:5:51: force 'push': 'value' entry 2 ('-1/t') is -inf at the initial state of the model file "
+            "(t = 0); a force value must be finite");
+  EXPECT_EQ(LoadError(head + "0, 0, \"sqrt(1 - t)\"]}\n"), "");
+  EXPECT_EQ(LoadError("format: 1\nbodies:\n  - {name: s, mass: 1, inertia: [1, 1, 1], position: [1, 0, 0]}\n"
+                      "forces:\n  - {name: k, type: spring_damper, i: s.cm, stiffness: 1, free_length: 0, damping: log(0)}\n"),
+            "m.yaml:5:84: force 'k': 'damping' ('log(0)') is -inf at the initial state of the model file (t = 0); "
+            "a force value must be finite");
+  // Values over measures: refused when the system is built, at the force.
   EXPECT_EQ(SystemError(PushedBody("1/(x - 1)")),
             "m.yaml:7:5: force 'push': 'value' entry 1 ('1/(x - 1)') is inf at the initial state of the model "
             "file (t = 0); a force value must be finite");
-  EXPECT_EQ(SystemError(PushedBody("-1/t")),
-            "m.yaml:7:5: force 'push': 'value' entry 1 ('-1/t') is -inf at the initial state of the model file "
-            "(t = 0); a force value must be finite");
-  EXPECT_EQ(SystemError(PushedBody("sqrt(1 - t)")), "");
-  // A spring_damper's values by key.
+  EXPECT_EQ(SystemError(PushedBody("sqrt(x - 1.5)")),
+            "m.yaml:7:5: force 'push': 'value' entry 1 ('sqrt(x - 1.5)') is nan at the initial state of the model "
+            "file (t = 0); a force value must be finite");
+  EXPECT_EQ(SystemError(PushedBody("1/x")), "");
   const Model spring = LoadModelFromString(
       "format: 1\nbodies:\n  - {name: s, mass: 1, inertia: [1, 1, 1], position: [1, 0, 0]}\n"
-      "forces:\n  - {name: k, type: spring_damper, i: s.cm, stiffness: 1, free_length: 0, damping: log(0)}\n",
+      "measures:\n  - {name: x, type: translational, i: s.cm, component: x, frame: world}\n"
+      "forces:\n  - {name: k, type: spring_damper, i: s.cm, stiffness: 1, free_length: 0, damping: log(x - 1)}\n",
       "m.yaml");
   EXPECT_EQ(SystemError(spring),
-            "m.yaml:5:5: force 'k': 'damping' ('log(0)') is -inf at the initial state of the model file (t = 0); "
+            "m.yaml:7:5: force 'k': 'damping' ('log(x - 1)') is -inf at the initial state of the model file (t = 0); "
             "a force value must be finite");
 }
 
