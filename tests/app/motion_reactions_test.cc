@@ -422,5 +422,62 @@ TEST(HhtStart, PerturbedStartHasNoAlternatingMultipliers) {
   EXPECT_LT(max_p, 2e-4);
 }
 
+
+// ---- A gear joint: what it exerts on the driven wheel ------------------------------------
+
+// verification/gear/gear.yaml: wheel 1 (J1 = 0.02 about z) driven by 0.05 sin t, wheel 2
+// (J2 = 0.005) geared to it with phi2 - phi2_0 = r (phi1 - phi1_0), r = -2. The gear's
+// torque on wheel 2 is T2 = J2 phi2'' = r J2 tau / (J1 + r^2 J2) = -0.25 tau, about z,
+// whatever the angles and rates.
+TEST(GearJointReactions, TorqueOnTheDrivenWheel) {
+  const char* text = R"yaml(format: 1
+bodies:
+  - {name: wheel1, mass: 1, inertia: [0.01, 0.01, 0.02], position: [0, 0, 0]}
+  - {name: wheel2, mass: 0.5, inertia: [0.004, 0.004, 0.005], position: [0.3, 0, 0],
+     orientation: {axis: [0, 0, 1], angle: 0.4}}
+measures:
+  - {name: phi1, type: rotational, i: wheel1.cm, j: ground.O, axis: z}
+  - {name: phi2, type: rotational, i: wheel2.cm, j: ground.B, axis: z}
+ground:
+  markers:
+    B: {position: [0.3, 0, 0]}
+joints:
+  - {name: hinge1, type: revolute, i: wheel1.cm, j: ground.O}
+  - {name: hinge2, type: revolute, i: wheel2.cm, j: ground.B}
+  - {name: mesh, type: gear, measures: [phi1, phi2], ratio: -2}
+forces:
+  - {name: drive, type: torque, i: wheel1.cm, frame: world, value: [0, 0, "0.05*sin(t)"]}
+)yaml";
+  mbs::Model model = mbs::LoadModelFromString(text, "gear.yaml");
+  Assembly asmb = Assemble(model);
+  OutputRowBuilder rows(model, asmb);
+  EXPECT_TRUE(rows.effort_joints().empty());
+  const int mesh = JointIndex(model, "mesh");
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int k = 0; k < 6; ++k) {
+    const double t = 3 * std::abs(u(rng)) + 0.1, phi1 = 2 * u(rng), w1 = 5 * u(rng);
+    const double phi2 = 0.4 - 2 * phi1, w2 = -2 * w1;
+    dae::State s = asmb.x0;
+    s.t = t;
+    const double angle[2] = {phi1, phi2}, rate[2] = {w1, w2};
+    for (int b = 0; b < 2; ++b) {
+      double* q = s.q.data() + 7 * b;
+      double* v = s.v.data() + 7 * b;
+      q[3] = std::cos(angle[b] / 2);
+      q[6] = std::sin(angle[b] / 2);
+      q[4] = q[5] = 0;
+      // e' = 1/2 E^T omega with omega = (0, 0, w): (-e3, -e2, e1, e0) w / 2.
+      v[3] = -0.5 * q[6] * rate[b];
+      v[4] = v[5] = 0;
+      v[6] = 0.5 * q[3] * rate[b];
+    }
+    const io::ResultsRow& row = rows.Compute(s);
+    const Vector3d expected(0, 0, -0.25 * 0.05 * std::sin(t));
+    EXPECT_LT((Torque(row, mesh) - expected).norm(), 1e-12) << "t " << t;
+    EXPECT_LT(Force(row, mesh).norm(), 1e-12);
+  }
+}
+
 }  // namespace
 }  // namespace mbdae::driver
