@@ -18,6 +18,7 @@
 #include "io/results_file.h"
 #include "mbs/freedyn.h"
 #include "mbs/loader.h"
+#include "mbs/measure_kinematics.h"
 #include "mbs/model_writer.h"
 
 namespace mbdae::driver {
@@ -209,6 +210,82 @@ void ReadIpoptOptions(const ProblemReader& r, const YAML::Node& node, std::vecto
 
 namespace {
 
+// `shooting:` (after the variables): checks the names against the model and the
+// variables, then appends the node variables.
+void ReadShooting(const ProblemReader& r, const YAML::Node& node, const std::map<std::string, YAML::Node>& fixed,
+                  OptimizationProblem* p) {
+  const std::string el = "shooting";
+  const mbs::Model& m = p->model;
+  if (!node.IsMap()) r.Fail(node, el, "expected a mapping {intervals: N, time: PARAMETER, state: [...]}, got " + r.Kind(node));
+  r.CheckKeys(node, el, {"intervals", "time", "state"});
+  std::vector<std::string> known;
+  for (const auto& q : m.parameters) known.push_back(q.name);
+  std::set<std::string> taken, used;  // variables; parameters named here
+  for (const auto& v : p->variables)
+    if (v.parameter >= 0) taken.insert(v.name);
+  // A model parameter that is neither a variable nor fixed nor used twice here.
+  auto parameter = [&](const YAML::Node& n, const std::string& element, const std::string& key) {
+    const std::string name = r.Name(n, element, key);
+    if (m.find_parameter(name) < 0)
+      r.Fail(n, element, "unknown parameter '" + name + "' of model " + p->model_path +
+                             (known.empty() ? std::string(" (it has no parameters)") : "; its parameters: " + Join(known)));
+    if (taken.count(name)) r.Fail(n, element, "parameter '" + name + "' is a variable: the shooting sets it");
+    if (fixed.count(name))
+      r.Fail(n, element, "parameter '" + name + "' is fixed in `parameters:` (line " +
+                             std::to_string(fixed.at(name).Mark().line + 1) + "): the shooting sets it");
+    if (!used.insert(name).second) r.Fail(n, element, "parameter '" + name + "' is used twice in `shooting:`");
+    return name;
+  };
+  Shooting& sh = p->shooting;
+  const YAML::Node in = node["intervals"];
+  if (!in) r.Fail(node, el, "missing key 'intervals'");
+  long long count = 0;
+  if (!in.IsScalar() || !YAML::convert<long long>::decode(in, count) || count < 1 || count > 1000)
+    r.Fail(in, el, "intervals must be an integer from 1 to 1000, got " + r.Kind(in));
+  sh.intervals = static_cast<int>(count);
+  if (!node["time"]) r.Fail(node, el, "missing key 'time' (the model parameter of the interval's start time)");
+  sh.time = parameter(node["time"], el, "time");
+  const YAML::Node st = node["state"];
+  if (!st || !st.IsSequence() || st.size() == 0)
+    r.Fail(st ? st : node, el, "expected 'state': a non-empty list of {parameter: NAME, measure: NAME}");
+  std::vector<std::string> measures;
+  for (const auto& q : m.measures) measures.push_back(q.name);
+  for (size_t k = 0; k < st.size(); ++k) {
+    const YAML::Node s = st[k];
+    const std::string e = "shooting.state[" + std::to_string(k) + "]";
+    r.CheckKeys(s, e, {"parameter", "measure", "lower", "upper"});
+    if (!s["parameter"]) r.Fail(s, e, "missing key 'parameter'");
+    if (!s["measure"]) r.Fail(s, e, "missing key 'measure'");
+    ShootingState ss;
+    ss.parameter = parameter(s["parameter"], e, "parameter");
+    ss.measure = r.Name(s["measure"], e, "measure");
+    for (size_t i = 0; i < m.measures.size(); ++i)
+      if (m.measures[i].name == ss.measure) ss.measure_index = static_cast<int>(i);
+    if (ss.measure_index < 0)
+      r.Fail(s["measure"], e, "unknown measure '" + ss.measure + "' of model " + p->model_path +
+                                  (measures.empty() ? std::string(" (it has no measures)") : "; its measures: " + Join(measures)));
+    for (const ShootingState& other : sh.states)
+      if (other.measure == ss.measure) r.Fail(s["measure"], e, "measure '" + ss.measure + "' is used twice in `shooting:`");
+    ss.angle = mbs::IsAngleMeasure(m.measures[ss.measure_index]);
+    if (s["lower"]) ss.lower = r.Number(s["lower"], e, "lower");
+    if (s["upper"]) ss.upper = r.Number(s["upper"], e, "upper");
+    if (ss.lower >= ss.upper)
+      r.Fail(s["lower"], e, "lower bound " + Num(ss.lower) + " is not below upper bound " + Num(ss.upper));
+    sh.states.push_back(ss);
+  }
+  for (int k = 1; k < sh.intervals; ++k)
+    for (size_t s = 0; s < sh.states.size(); ++s) {
+      OptimizationVariable ov;
+      ov.name = sh.states[s].parameter + "@" + std::to_string(k);
+      ov.node = k;
+      ov.state = static_cast<int>(s);
+      ov.lower = sh.states[s].lower;
+      ov.upper = sh.states[s].upper;
+      ov.start = m.parameters[m.find_parameter(sh.states[s].parameter)].value;
+      p->variables.push_back(ov);
+    }
+}
+
 // The problem from its parsed YAML; `path` names it in messages and its folder is where
 // `model:` is resolved.
 OptimizationProblem ReadProblem(const YAML::Node& root, const std::string& path) {
@@ -218,7 +295,8 @@ OptimizationProblem ReadProblem(const YAML::Node& root, const std::string& path)
   const std::string element = "problem";
   if (!root.IsMap()) r.Fail(root, element, "expected a mapping (format, model, variables, minimize, ...), got " + r.Kind(root));
   r.CheckKeys(root, element,
-              {"format", "model", "parameters", "variables", "minimize", "constraints", "simulation", "ipopt", "method"});
+              {"format", "model", "parameters", "variables", "minimize", "constraints", "simulation", "ipopt", "method",
+               "shooting"});
   auto required = [&](const char* key) {
     const YAML::Node n = root[key];
     if (!n) r.Fail(root, element, std::string("missing key '") + key + "'");
@@ -435,6 +513,7 @@ OptimizationProblem ReadProblem(const YAML::Node& root, const std::string& path)
     if (!ParseGradientMethod(v, &p.method)) r.Fail(n, "method", "expected adjoint, forward or fd, got '" + v + "'");
   }
   if (const YAML::Node n = root["ipopt"]) ReadIpoptOptions(r, n, &p.ipopt);
+  if (const YAML::Node n = root["shooting"]) ReadShooting(r, n, fixed_nodes, &p);
   return p;
 }
 
@@ -483,7 +562,11 @@ class ShootingNlp : public Ipopt::TNLP {
  public:
   ShootingNlp(const OptimizationProblem& p, const OptimizeOptions& o, OptimizationResult* r)
       : p_(p), o_(o), r_(r) {
-    for (const auto& v : p.variables) wrt_.push_back(v.name);
+    for (size_t k = 0; k < p.variables.size(); ++k) {
+      if (p.variables[k].node > 0) continue;
+      wrt_.push_back(p.variables[k].name);
+      global_.push_back(static_cast<int>(k));
+    }
     objectives_.push_back(p.objective);
     for (const auto& c : p.constraints)
       if (std::find(objectives_.begin(), objectives_.end(), c.objective) == objectives_.end())
@@ -491,7 +574,19 @@ class ShootingNlp : public Ipopt::TNLP {
     for (const auto& v : p.variables) has_parameters_ = has_parameters_ || v.parameter >= 0;
     final_x_.reserve(p.variables.size());
     for (const auto& v : p.variables) final_x_.push_back(v.start);
+    const Shooting& sh = p.shooting;
+    if (sh.intervals > 1) {
+      for (int k = 1; k < sh.intervals; ++k) {
+        node_.emplace_back();
+        for (size_t v = 0; v < p.variables.size(); ++v)
+          if (p.variables[v].node == k) node_.back().push_back(static_cast<int>(v));
+      }
+      for (size_t s = 0; s < sh.states.size(); ++s) end_names_.push_back(" shooting end " + sh.states[s].measure);
+    }
   }
+
+  int intervals() const { return p_.shooting.intervals; }
+  size_t continuity_rows() const { return intervals() > 1 ? (intervals() - 1) * p_.shooting.states.size() : 0; }
 
   // The model with the variables at x (parameter variables by a reload, then the
   // ordinates); `extra` are further parameter overrides (fd's perturbations).
@@ -522,6 +617,140 @@ class ShootingNlp : public Ipopt::TNLP {
     return m;
   }
 
+  // Multiple shooting: the model of interval k (0-based) at x: reloaded with the time
+  // parameter at the interval's start and (k >= 1) the states' parameters at the node
+  // variables, angle measures counting turns from the nodes' angles; terminal parts of
+  // the objectives only in the last interval; plus one terminal objective per state (its
+  // measure at the interval's end).
+  mbs::Model IntervalModel(const std::vector<double>& x, int k, const std::map<std::string, double>& extra = {}) const {
+    const Shooting& sh = p_.shooting;
+    std::map<std::string, double> overrides = {{sh.time, k * p_.settings.t_end / sh.intervals}};
+    if (k >= 1)
+      for (int v : node_[k - 1]) overrides[sh.states[p_.variables[v].state].parameter] = x[v];
+    for (const auto& [name, value] : extra) overrides[name] = value;
+    mbs::Model m = ModelAt(x, overrides);
+    if (k >= 1)
+      for (int v : node_[k - 1]) {
+        const ShootingState& st = sh.states[p_.variables[v].state];
+        if (st.angle) m.measures[st.measure_index].turn_reference = x[v];
+      }
+    if (k < sh.intervals - 1)
+      for (mbs::Objective& o : m.objectives) {
+        o.has_terminal = false;
+        o.terminal = mbs::Expression();
+      }
+    mbs::SymbolTable symbols;
+    for (const auto& q : m.parameters) symbols.parameters.push_back(q.name);
+    for (const auto& q : m.measures) symbols.measures.push_back(q.name);
+    symbols.allow_time = true;
+    for (size_t s = 0; s < sh.states.size(); ++s) {
+      mbs::Objective o;
+      o.name = end_names_[s];
+      o.terminal = mbs::Expression::Parse(sh.states[s].measure, symbols);
+      o.has_terminal = true;
+      m.objectives.push_back(o);
+    }
+    return m;
+  }
+
+  // One interval's run and gradient at x: the objectives_, then (not the last interval)
+  // the states' end values, with respect to the global variables and (k >= 1) the node
+  // variables of interval k.
+  GradientResult Interval(const std::vector<double>& x, int k) {
+    GradientRequest request;
+    request.objectives = objectives_;
+    if (k < intervals() - 1) request.objectives.insert(request.objectives.end(), end_names_.begin(), end_names_.end());
+    request.wrt = wrt_;
+    if (k >= 1)
+      for (int v : node_[k - 1]) request.wrt.push_back(p_.shooting.states[p_.variables[v].state].parameter);
+    request.method = p_.method;
+    GradientOptions go;
+    go.model_path = p_.model_path;
+    go.reload = [this, &x, k](const std::map<std::string, double>& overrides) { return IntervalModel(x, k, overrides); };
+    mbs::SimulationSettings settings = p_.settings;
+    settings.t_end = p_.settings.t_end / intervals();
+    const mbs::Model model = IntervalModel(x, k);
+    ++r_->gradient_evaluations;
+    const double cpu = CpuSeconds();
+    GradientResult g = ComputeGradient(model, settings, request, go);
+    r_->gradient_cpu_time += CpuSeconds() - cpu;
+    r_->runs += g.runs;
+    return g;
+  }
+
+  // Multiple shooting: the starting node variables from a forward sweep (each interval
+  // from the end of the previous one), for the node variables without `start:`.
+  void SweepStart(std::vector<double>* x) {
+    for (int k = 0; k + 1 < intervals(); ++k) {
+      const GradientResult g = Interval(*x, k);
+      if (g.status != GradientResult::Status::kDone) return;  // the model's values stay
+      for (int v : node_[k]) {
+        const auto it = std::find(g.objectives.begin(), g.objectives.end(), end_names_[p_.variables[v].state]);
+        (*x)[v] = std::clamp(g.values[it - g.objectives.begin()], p_.variables[v].lower, p_.variables[v].upper);
+      }
+    }
+  }
+
+  // The objective, the constraints and the continuity defects at x as sums over the
+  // intervals (the objectives' integrals add up; terminal parts come from the last).
+  void EvaluateShooting(const std::vector<double>& x) {
+    const size_t n = x.size(), m0 = p_.constraints.size(), m = m0 + continuity_rows();
+    cache_.grad_f.assign(n, 0.0);
+    cache_.g.assign(m, 0.0);
+    cache_.jac.assign(m * n, 0.0);
+    const size_t ns = p_.shooting.states.size();
+    for (int k = 0; k < intervals(); ++k) {
+      const GradientResult g = Interval(x, k);
+      if (g.status != GradientResult::Status::kDone) {
+        last_failure_ = "interval " + std::to_string(k + 1) + ": " + g.failure_reason;
+        ++r_->failed_evaluations;
+        return;
+      }
+      // wrt column c of this run -> variable index
+      std::vector<int> column(global_);
+      if (k >= 1) column.insert(column.end(), node_[k - 1].begin(), node_[k - 1].end());
+      auto index = [&g](const std::string& name) {
+        return static_cast<int>(std::find(g.objectives.begin(), g.objectives.end(), name) - g.objectives.begin());
+      };
+      auto add_row = [&](int io, double* row, double scale) {
+        for (size_t c = 0; c < column.size(); ++c) row[column[c]] += scale * g.Gradient(io, static_cast<int>(c));
+      };
+      const int io = index(p_.objective);
+      cache_.f += g.values[io];
+      add_row(io, cache_.grad_f.data(), 1.0);
+      for (size_t i = 0; i < m0; ++i) {
+        const int ic = index(p_.constraints[i].objective);
+        cache_.g[i] += g.values[ic];
+        add_row(ic, &cache_.jac[i * n], 1.0);
+      }
+      if (k + 1 < intervals())
+        for (size_t s = 0; s < ns; ++s) {
+          const size_t row = m0 + k * ns + s;
+          const int ie = index(end_names_[s]);
+          const int v = node_[k][s];
+          cache_.g[row] = g.values[ie] - x[v];
+          add_row(ie, &cache_.jac[row * n], 1.0);
+          cache_.jac[row * n + v] -= 1.0;
+        }
+    }
+    bool finite = std::isfinite(cache_.f);
+    for (double v : cache_.grad_f) finite = finite && std::isfinite(v);
+    for (double v : cache_.g) finite = finite && std::isfinite(v);
+    for (double v : cache_.jac) finite = finite && std::isfinite(v);
+    cache_.ok = finite;
+    if (!finite) {
+      last_failure_ = "a value or gradient is not finite";
+      ++r_->failed_evaluations;
+    }
+  }
+
+  // The largest |continuity defect| of the last evaluation.
+  double Defect() const {
+    double d = 0;
+    for (size_t i = p_.constraints.size(); i < cache_.g.size(); ++i) d = std::max(d, std::abs(cache_.g[i]));
+    return d;
+  }
+
   // The evaluation at x (cached). Throws InputError only from the first evaluation (the
   // problem's variables checked by ComputeGradient); later failures give ok = false.
   const Evaluation& Evaluate(const std::vector<double>& x, bool first = false) {
@@ -529,6 +758,20 @@ class ShootingNlp : public Ipopt::TNLP {
     const size_t n = x.size(), m = p_.constraints.size();
     cache_ = Evaluation{};
     cache_.x = x;
+    if (intervals() > 1) {
+      try {
+        EvaluateShooting(x);
+      } catch (const InputError&) {
+        if (first) throw;
+        last_failure_ = "bad input";
+        ++r_->failed_evaluations;
+      } catch (const std::exception& e) {
+        if (first) throw;
+        last_failure_ = e.what();
+        ++r_->failed_evaluations;
+      }
+      return cache_;
+    }
     GradientRequest request;
     request.objectives = objectives_;
     request.wrt = wrt_;
@@ -585,13 +828,14 @@ class ShootingNlp : public Ipopt::TNLP {
     return cache_;
   }
 
+  void set_start(const std::vector<double>& x) { start_ = x; }
   const std::string& last_failure() const { return last_failure_; }
   const std::vector<double>& final_x() const { return final_x_; }
 
   bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac_g, Ipopt::Index& nnz_h_lag,
                     IndexStyleEnum& index_style) override {
     n = static_cast<Ipopt::Index>(p_.variables.size());
-    m = static_cast<Ipopt::Index>(p_.constraints.size());
+    m = static_cast<Ipopt::Index>(p_.constraints.size() + continuity_rows());
     nnz_jac_g = n * m;
     nnz_h_lag = 0;
     index_style = C_STYLE;
@@ -607,8 +851,9 @@ class ShootingNlp : public Ipopt::TNLP {
       x_u[k] = clip(p_.variables[k].upper);
     }
     for (Ipopt::Index i = 0; i < m; ++i) {
-      g_l[i] = clip(p_.constraints[i].lower);
-      g_u[i] = clip(p_.constraints[i].upper);
+      const bool continuity = i >= static_cast<Ipopt::Index>(p_.constraints.size());
+      g_l[i] = continuity ? 0.0 : clip(p_.constraints[i].lower);
+      g_u[i] = continuity ? 0.0 : clip(p_.constraints[i].upper);
     }
     return true;
   }
@@ -616,8 +861,8 @@ class ShootingNlp : public Ipopt::TNLP {
   bool get_starting_point(Ipopt::Index n, bool init_x, Ipopt::Number* x, bool init_z, Ipopt::Number*, Ipopt::Number*,
                           Ipopt::Index, bool init_lambda, Ipopt::Number*) override {
     if (!init_x || init_z || init_lambda) return false;
-    for (Ipopt::Index k = 0; k < n; ++k) x[k] = p_.variables[k].start;
-    return true;
+    std::copy(start_.begin(), start_.end(), x);
+    return static_cast<Ipopt::Index>(start_.size()) == n;
   }
 
   bool eval_f(Ipopt::Index n, const Ipopt::Number* x, bool, Ipopt::Number& obj_value) override {
@@ -689,6 +934,10 @@ class ShootingNlp : public Ipopt::TNLP {
   const OptimizeOptions& o_;
   OptimizationResult* r_;
   std::vector<std::string> wrt_, objectives_;
+  std::vector<int> global_;              // the variables that are not node variables
+  std::vector<std::vector<int>> node_;   // node_[k - 1]: node variables of interval k, by state
+  std::vector<std::string> end_names_;   // the states' end objectives
+  std::vector<double> start_;
   bool has_parameters_ = false;
   Evaluation cache_;
   std::string last_failure_;
@@ -727,7 +976,9 @@ void WriteOptimization(const std::string& path, const OptimizationResult& r) {
   g.numbers = {{"objective", r.objective},
                {"constraint_violation", r.constraint_violation},
                {"iterations", static_cast<double>(r.iterations)},
-               {"gradient_evaluations", static_cast<double>(r.gradient_evaluations)}};
+               {"gradient_evaluations", static_cast<double>(r.gradient_evaluations)},
+               {"shooting_intervals", static_cast<double>(r.shooting_intervals)},
+               {"shooting_defect", r.shooting_defect}};
   g.strings = {{"objective_name", {r.objective_name}},
                {"constraint_names", r.constraint_names},
                {"ipopt_status", {r.ipopt_status}}};
@@ -767,6 +1018,9 @@ OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOp
   // cannot differentiate) is bad input, before anything is written.
   std::vector<double> x0;
   for (const auto& v : problem.variables) x0.push_back(std::clamp(v.start, v.lower, v.upper));
+  r.shooting_intervals = problem.shooting.intervals;
+  if (problem.shooting.intervals > 1) nlp->SweepStart(&x0);
+  nlp->set_start(x0);
   nlp->Evaluate(x0, /*first=*/true);
 
   // Ipopt without its console output (mbdae prints its own lines; stdout may be JSON).
@@ -793,14 +1047,26 @@ OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOp
   else if (!r.history.empty()) r.iterations = r.history.back().iteration;
   r.variables = nlp->final_x();
 
-  // The final run: the model at the final point, into the results file.
+  if (problem.shooting.intervals > 1) {
+    nlp->Evaluate(r.variables);
+    r.shooting_defect = nlp->Defect();
+  }
+
+  // The final run: the model at the final point, into the results file (multiple
+  // shooting: one run over [0, t_end] with the time parameter at 0).
   try {
-    const mbs::Model model = nlp->ModelAt(r.variables);
+    std::map<std::string, double> time0;
+    if (problem.shooting.intervals > 1) time0[problem.shooting.time] = 0.0;
+    const mbs::Model model = nlp->ModelAt(r.variables, time0);
     Assembly asmb = Assemble(model);
     SimulationOptions so;
     so.model_path = problem.model_path;
     so.results_path = options.results_path;
-    r.final_run = Simulate(model, asmb, problem.settings, so);
+    // HHT from the consistent start, as the gradient runs: the final run is the run of
+    // the final point that the optimiser saw (hht.start perturbed would move it by O(h^2)).
+    mbs::SimulationSettings settings = problem.settings;
+    settings.hht_start = "consistent";
+    r.final_run = Simulate(model, asmb, settings, so);
     ++r.runs;
     if (r.final_run.status == SimulationSummary::Status::kDone) {
       std::map<std::string, double> values;
@@ -839,6 +1105,9 @@ std::string OptimizationResult::Report() const {
     for (size_t i = 0; i < constraint_names.size(); ++i)
       s << "  " << constraint_names[i] << " = " << Num(i < constraint_values.size() ? constraint_values[i] : NAN) << "\n";
   }
+  if (shooting_intervals > 1)
+    s << "multiple shooting: " << shooting_intervals << " intervals, largest continuity defect " << Num(shooting_defect)
+      << " (the constraints above: one run over the whole time from the final variables)\n";
   s << "variables:\n";
   for (size_t k = 0; k < variable_names.size(); ++k) s << "  " << variable_names[k] << " = " << Num(variables[k]) << "\n";
   s << "iterations: " << iterations << ", gradient evaluations: " << gradient_evaluations;
@@ -859,7 +1128,8 @@ std::string OptimizationResult::Json() const {
   for (size_t k = 0; k < variable_names.size(); ++k)
     s << (k ? ", " : "") << JsonString(variable_names[k]) << ": " << JsonNumber(variables[k]);
   s << "}, \"constraint_violation\": " << JsonNumber(constraint_violation)
-    << ", \"ipopt_status\": " << JsonString(ipopt_status) << ", \"objective_name\": " << JsonString(objective_name)
+    << ", \"ipopt_status\": " << JsonString(ipopt_status) << ", \"shooting_intervals\": " << shooting_intervals
+    << ", \"shooting_defect\": " << JsonNumber(shooting_defect) << ", \"objective_name\": " << JsonString(objective_name)
     << ", \"constraints\": {";
   for (size_t i = 0; i < constraint_names.size(); ++i)
     s << (i ? ", " : "") << JsonString(constraint_names[i]) << ": "

@@ -71,6 +71,31 @@ struct OptimizationVariable {
   double upper = std::numeric_limits<double>::infinity();
   double start = 0;  // the problem's `start:`, else the model's value
   bool start_given = false;  // `start:` in the problem file
+  // Multiple shooting: a node variable, state `state` (Shooting::states index) at the
+  // start of interval `node` (1 .. intervals - 1), named PARAMETER@NODE; its start is the
+  // state reached by the runs from the starting point (a forward sweep).
+  int node = 0, state = -1;
+};
+
+// Multiple shooting (`shooting:` in the problem file): [0, t_end] in `intervals` equal
+// intervals, each its own run from t = 0 to t_end / intervals of the model reloaded with
+// `time` = the interval's start time and, from the second interval on, every state's
+// `parameter` = a node variable; constraints: each state's `measure` at an interval's end
+// equals the next interval's node variable. The model must write its time-dependent
+// values with t + time and set its initial state from the states' parameters.
+struct ShootingState {
+  std::string parameter;  // sets the state at an interval's start (the node variable)
+  std::string measure;    // the state at an interval's end (continuity)
+  int measure_index = -1;
+  bool angle = false;     // an angle measure: its turns continue from the node's value
+  double lower = -std::numeric_limits<double>::infinity();  // bounds of the node variables
+  double upper = std::numeric_limits<double>::infinity();
+};
+
+struct Shooting {
+  int intervals = 1;  // 1: single shooting (no `shooting:`)
+  std::string time;   // the parameter that holds the interval's start time
+  std::vector<ShootingState> states;
 };
 
 struct OptimizationConstraint {
@@ -100,6 +125,7 @@ struct OptimizationProblem {
   std::string objective;
   std::vector<OptimizationConstraint> constraints;
   GradientMethod method = GradientMethod::kAdjoint;
+  Shooting shooting;
   // Applied after mbdae's defaults (hessian_approximation limited-memory, print_level 0):
   // any registered Ipopt option but hessian_approximation exact (mbdae gives no second
   // derivatives).
@@ -151,6 +177,10 @@ struct OptimizationResult {
   double constraint_violation = std::numeric_limits<double>::quiet_NaN();
   int iterations = 0;
   std::vector<OptimizationIteration> history;
+  // Multiple shooting: the largest |continuity defect| at the final point, and the
+  // intervals (the final run is one run over [0, t_end] from the final variables).
+  int shooting_intervals = 1;
+  double shooting_defect = 0;
   long gradient_evaluations = 0;  // ComputeGradient calls (each: a run and its gradient)
   long failed_evaluations = 0;    // of those, failed runs (Ipopt cut its step)
   long runs = 0;                  // whole simulation runs, the final run included

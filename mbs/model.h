@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -113,6 +114,11 @@ struct Measure {
   // the second, driven measure); reactions have no quantity and no offset_initial.
   int joint = -1;
   bool torque = false;
+  // Angle measures (IsAngleMeasure): the objectives count turns from the branch of the
+  // initial angle nearest to this value (NaN: the principal value in (-pi, pi]). Set by
+  // programs, not by the model file: `mbdae optimize` with `shooting:` sets it to the
+  // node's angle so that an interval's angles continue those of the previous one.
+  double turn_reference = std::numeric_limits<double>::quiet_NaN();
   SourceLocation where;
 };
 

@@ -109,7 +109,8 @@ struct ModelObjectives::Impl {
       if (mbs::IsAngleMeasure(me)) {
         angles.push_back(u);
         rate_defs.push_back(mbs::AngleRate(defs[u]));
-        track.angles.push_back(mbs::EvaluateMeasureValue(defs[u], q0.data(), v0.data(), nullptr));
+        const double angle0 = mbs::EvaluateMeasureValue(defs[u], q0.data(), v0.data(), nullptr);
+        track.angles.push_back(std::isfinite(me.turn_reference) ? mbs::UnwrapAngle(angle0, me.turn_reference) : angle0);
         track.rates.push_back(0.0);
       }
     }
