@@ -34,7 +34,7 @@ struct IdaOptions {
   // (0: no limit). A run that creeps with ever smaller steps (a singular configuration
   // the corrector cannot pass, a stiffness beyond what the tolerances resolve) ends here
   // instead of running for hours.
-  long max_steps = 1000000;
+  long max_steps = 100000000;  // 1e8: a 1310 s pendulum at rtol 1e-10 takes over 1e6
   // The run fails after 20 steps in a row with h < min_relative_step * max(1, |t|): at
   // such steps the time barely advances (1e-14 at t = 1 is 45 units in the last place
   // of t). 20, because IDA's first step may be that small and doubles from there. 0: no

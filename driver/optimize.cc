@@ -733,6 +733,11 @@ class ShootingNlp : public Ipopt::TNLP {
           cache_.jac[row * n + v] -= 1.0;
         }
     }
+    CheckFinite();
+  }
+
+  // The cached evaluation is ok when every value and derivative is finite.
+  void CheckFinite() {
     bool finite = std::isfinite(cache_.f);
     for (double v : cache_.grad_f) finite = finite && std::isfinite(v);
     for (double v : cache_.g) finite = finite && std::isfinite(v);
@@ -805,15 +810,7 @@ class ShootingNlp : public Ipopt::TNLP {
         cache_.g[i] = g.values[ic];
         for (size_t k = 0; k < n; ++k) cache_.jac[i * n + k] = g.Gradient(ic, static_cast<int>(k));
       }
-      bool finite = std::isfinite(cache_.f);
-      for (double v : cache_.grad_f) finite = finite && std::isfinite(v);
-      for (double v : cache_.g) finite = finite && std::isfinite(v);
-      for (double v : cache_.jac) finite = finite && std::isfinite(v);
-      cache_.ok = finite;
-      if (!finite) {
-        last_failure_ = "a value or gradient is not finite";
-        ++r_->failed_evaluations;
-      }
+      CheckFinite();
     } catch (const InputError&) {
       r_->gradient_cpu_time += CpuSeconds() - cpu;
       if (first) throw;
