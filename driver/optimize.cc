@@ -200,8 +200,6 @@ void ReadIpoptOptions(const ProblemReader& r, const YAML::Node& node, std::vecto
     if (!accepted) {
       r.Fail(v, element, what + ": Ipopt does not accept " + r.Kind(v) + " (its range or list of values)");
     }
-    if (name == "hessian_approximation" && o.text != "limited-memory")
-      r.Fail(v, element, "hessian_approximation must be limited-memory: mbdae gives no second derivatives");
     out->push_back(o);
   }
 }
@@ -253,7 +251,7 @@ void ReadShooting(const ProblemReader& r, const YAML::Node& node, const std::map
   for (size_t k = 0; k < st.size(); ++k) {
     const YAML::Node s = st[k];
     const std::string e = "shooting.state[" + std::to_string(k) + "]";
-    r.CheckKeys(s, e, {"parameter", "measure", "lower", "upper"});
+    r.CheckKeys(s, e, {"parameter", "measure", "lower", "upper", "start"});
     if (!s["parameter"]) r.Fail(s, e, "missing key 'parameter'");
     if (!s["measure"]) r.Fail(s, e, "missing key 'measure'");
     ShootingState ss;
@@ -271,6 +269,17 @@ void ReadShooting(const ProblemReader& r, const YAML::Node& node, const std::map
     if (s["upper"]) ss.upper = r.Number(s["upper"], e, "upper");
     if (ss.lower >= ss.upper)
       r.Fail(s["lower"], e, "lower bound " + Num(ss.lower) + " is not below upper bound " + Num(ss.upper));
+    if (const YAML::Node v = s["start"]) {  // the node variables' starts, nodes 1 .. intervals - 1
+      if (!v.IsSequence() || v.size() != static_cast<size_t>(sh.intervals - 1))
+        r.Fail(v, e, "expected 'start': a list of " + std::to_string(sh.intervals - 1) +
+                         " values (one per node, intervals - 1), got " + r.Kind(v));
+      for (size_t i = 0; i < v.size(); ++i) {
+        const double x = r.Number(v[i], e, "start[" + std::to_string(i) + "]");
+        if (x < ss.lower || x > ss.upper)
+          r.Fail(v[i], e, "start " + Num(x) + " is outside the bounds [" + Num(ss.lower) + ", " + Num(ss.upper) + "]");
+        ss.start.push_back(x);
+      }
+    }
     sh.states.push_back(ss);
   }
   for (int k = 1; k < sh.intervals; ++k)
@@ -282,6 +291,10 @@ void ReadShooting(const ProblemReader& r, const YAML::Node& node, const std::map
       ov.lower = sh.states[s].lower;
       ov.upper = sh.states[s].upper;
       ov.start = m.parameters[m.find_parameter(sh.states[s].parameter)].value;
+      if (!sh.states[s].start.empty()) {
+        ov.start = sh.states[s].start[k - 1];
+        ov.start_given = true;
+      }
       p->variables.push_back(ov);
     }
 }
@@ -682,9 +695,13 @@ class ShootingNlp : public Ipopt::TNLP {
   // from the end of the previous one), for the node variables without `start:`.
   void SweepStart(std::vector<double>* x) {
     for (int k = 0; k + 1 < intervals(); ++k) {
+      bool given = true;  // every node variable of interval k + 1 has its `start:`
+      for (int v : node_[k]) given = given && p_.variables[v].start_given;
+      if (given) continue;
       const GradientResult g = Interval(*x, k);
       if (g.status != GradientResult::Status::kDone) return;  // the model's values stay
       for (int v : node_[k]) {
+        if (p_.variables[v].start_given) continue;
         const auto it = std::find(g.objectives.begin(), g.objectives.end(), end_names_[p_.variables[v].state]);
         (*x)[v] = std::clamp(g.values[it - g.objectives.begin()], p_.variables[v].lower, p_.variables[v].upper);
       }
@@ -693,56 +710,70 @@ class ShootingNlp : public Ipopt::TNLP {
 
   // The objective, the constraints and the continuity defects at x as sums over the
   // intervals (the objectives' integrals add up; terminal parts come from the last).
-  void EvaluateShooting(const std::vector<double>& x) {
-    const size_t n = x.size(), m0 = p_.constraints.size(), m = m0 + continuity_rows();
-    cache_.grad_f.assign(n, 0.0);
-    cache_.g.assign(m, 0.0);
-    cache_.jac.assign(m * n, 0.0);
-    const size_t ns = p_.shooting.states.size();
-    for (int k = 0; k < intervals(); ++k) {
-      const GradientResult g = Interval(x, k);
-      if (g.status != GradientResult::Status::kDone) {
-        last_failure_ = "interval " + std::to_string(k + 1) + ": " + g.failure_reason;
-        ++r_->failed_evaluations;
-        return;
-      }
-      // wrt column c of this run -> variable index
-      std::vector<int> column(global_);
-      if (k >= 1) column.insert(column.end(), node_[k - 1].begin(), node_[k - 1].end());
-      auto index = [&g](const std::string& name) {
-        return static_cast<int>(std::find(g.objectives.begin(), g.objectives.end(), name) - g.objectives.begin());
-      };
-      auto add_row = [&](int io, double* row, double scale) {
-        for (size_t c = 0; c < column.size(); ++c) row[column[c]] += scale * g.Gradient(io, static_cast<int>(c));
-      };
-      const int io = index(p_.objective);
-      cache_.f += g.values[io];
-      add_row(io, cache_.grad_f.data(), 1.0);
-      for (size_t i = 0; i < m0; ++i) {
-        const int ic = index(p_.constraints[i].objective);
-        cache_.g[i] += g.values[ic];
-        add_row(ic, &cache_.jac[i * n], 1.0);
-      }
-      if (k + 1 < intervals())
-        for (size_t s = 0; s < ns; ++s) {
-          const size_t row = m0 + k * ns + s;
-          const int ie = index(end_names_[s]);
-          const int v = node_[k][s];
-          cache_.g[row] = g.values[ie] - x[v];
-          add_row(ie, &cache_.jac[row * n], 1.0);
-          cache_.jac[row * n + v] -= 1.0;
-        }
-    }
-    CheckFinite();
+  void EvaluateShooting(const std::vector<double>& x, Evaluation* e) {
+    Clear(e, x.size());
+    for (int k = 0; k < intervals(); ++k)
+      if (!AddInterval(x, k, e)) return;
+    CheckFinite(e);
   }
 
-  // The cached evaluation is ok when every value and derivative is finite.
-  void CheckFinite() {
-    bool finite = std::isfinite(cache_.f);
-    for (double v : cache_.grad_f) finite = finite && std::isfinite(v);
-    for (double v : cache_.g) finite = finite && std::isfinite(v);
-    for (double v : cache_.jac) finite = finite && std::isfinite(v);
-    cache_.ok = finite;
+  // Zero values and derivatives for n variables.
+  void Clear(Evaluation* e, size_t n) const {
+    const size_t m = p_.constraints.size() + continuity_rows();
+    e->ok = false;
+    e->f = 0;
+    e->grad_f.assign(n, 0.0);
+    e->g.assign(m, 0.0);
+    e->jac.assign(m * n, 0.0);
+  }
+
+  // Adds interval k's run at x to e: its share of the objective and constraints, and the
+  // continuity row of its end (not the last interval). False (last_failure_ set) when the
+  // run fails.
+  bool AddInterval(const std::vector<double>& x, int k, Evaluation* e) {
+    const size_t n = x.size(), m0 = p_.constraints.size(), ns = p_.shooting.states.size();
+    const GradientResult g = Interval(x, k);
+    if (g.status != GradientResult::Status::kDone) {
+      last_failure_ = "interval " + std::to_string(k + 1) + ": " + g.failure_reason;
+      ++r_->failed_evaluations;
+      return false;
+    }
+    // wrt column c of this run -> variable index
+    std::vector<int> column(global_);
+    if (k >= 1) column.insert(column.end(), node_[k - 1].begin(), node_[k - 1].end());
+    auto index = [&g](const std::string& name) {
+      return static_cast<int>(std::find(g.objectives.begin(), g.objectives.end(), name) - g.objectives.begin());
+    };
+    auto add_row = [&](int io, double* row) {
+      for (size_t c = 0; c < column.size(); ++c) row[column[c]] += g.Gradient(io, static_cast<int>(c));
+    };
+    const int io = index(p_.objective);
+    e->f += g.values[io];
+    add_row(io, e->grad_f.data());
+    for (size_t i = 0; i < m0; ++i) {
+      const int ic = index(p_.constraints[i].objective);
+      e->g[i] += g.values[ic];
+      add_row(ic, &e->jac[i * n]);
+    }
+    if (k + 1 < intervals())
+      for (size_t s = 0; s < ns; ++s) {
+        const size_t row = m0 + k * ns + s;
+        const int ie = index(end_names_[s]);
+        const int v = node_[k][s];
+        e->g[row] = g.values[ie] - x[v];
+        add_row(ie, &e->jac[row * n]);
+        e->jac[row * n + v] -= 1.0;
+      }
+    return true;
+  }
+
+  // e is ok when every value and derivative is finite.
+  void CheckFinite(Evaluation* e) {
+    bool finite = std::isfinite(e->f);
+    for (double v : e->grad_f) finite = finite && std::isfinite(v);
+    for (double v : e->g) finite = finite && std::isfinite(v);
+    for (double v : e->jac) finite = finite && std::isfinite(v);
+    e->ok = finite;
     if (!finite) {
       last_failure_ = "a value or gradient is not finite";
       ++r_->failed_evaluations;
@@ -760,22 +791,28 @@ class ShootingNlp : public Ipopt::TNLP {
   // problem's variables checked by ComputeGradient); later failures give ok = false.
   const Evaluation& Evaluate(const std::vector<double>& x, bool first = false) {
     if (cache_.x == x && !cache_.x.empty()) return cache_;
-    const size_t n = x.size(), m = p_.constraints.size();
     cache_ = Evaluation{};
     cache_.x = x;
+    EvaluateInto(x, &cache_, first);
+    return cache_;
+  }
+
+  // The evaluation at x into e (no cache).
+  void EvaluateInto(const std::vector<double>& x, Evaluation* e, bool first = false) {
+    const size_t n = x.size(), m = p_.constraints.size();
     if (intervals() > 1) {
       try {
-        EvaluateShooting(x);
+        EvaluateShooting(x, e);
       } catch (const InputError&) {
         if (first) throw;
         last_failure_ = "bad input";
         ++r_->failed_evaluations;
-      } catch (const std::exception& e) {
+      } catch (const std::exception& ex) {
         if (first) throw;
-        last_failure_ = e.what();
+        last_failure_ = ex.what();
         ++r_->failed_evaluations;
       }
-      return cache_;
+      return;
     }
     GradientRequest request;
     request.objectives = objectives_;
@@ -794,38 +831,95 @@ class ShootingNlp : public Ipopt::TNLP {
       if (g.status != GradientResult::Status::kDone) {
         last_failure_ = g.failure_reason;
         ++r_->failed_evaluations;
-        return cache_;
+        return;
       }
       auto index = [&g](const std::string& name) {
         return static_cast<int>(std::find(g.objectives.begin(), g.objectives.end(), name) - g.objectives.begin());
       };
       const int io = index(p_.objective);
-      cache_.f = g.values[io];
-      cache_.grad_f.resize(n);
-      for (size_t k = 0; k < n; ++k) cache_.grad_f[k] = g.Gradient(io, static_cast<int>(k));
-      cache_.g.resize(m);
-      cache_.jac.resize(m * n);
+      e->f = g.values[io];
+      e->grad_f.resize(n);
+      for (size_t k = 0; k < n; ++k) e->grad_f[k] = g.Gradient(io, static_cast<int>(k));
+      e->g.resize(m);
+      e->jac.resize(m * n);
       for (size_t i = 0; i < m; ++i) {
         const int ic = index(p_.constraints[i].objective);
-        cache_.g[i] = g.values[ic];
-        for (size_t k = 0; k < n; ++k) cache_.jac[i * n + k] = g.Gradient(ic, static_cast<int>(k));
+        e->g[i] = g.values[ic];
+        for (size_t k = 0; k < n; ++k) e->jac[i * n + k] = g.Gradient(ic, static_cast<int>(k));
       }
-      CheckFinite();
+      CheckFinite(e);
     } catch (const InputError&) {
       r_->gradient_cpu_time += CpuSeconds() - cpu;
       if (first) throw;
       last_failure_ = "bad input";
       ++r_->failed_evaluations;
-    } catch (const std::exception& e) {
+    } catch (const std::exception& ex) {
       r_->gradient_cpu_time += CpuSeconds() - cpu;
       if (first) throw;
-      last_failure_ = e.what();
+      last_failure_ = ex.what();
       ++r_->failed_evaluations;
     }
-    return cache_;
+  }
+
+  // Second derivatives (`ipopt: {hessian_approximation: exact}`): the difference quotients
+  // of every exact first derivative at x, (grad(x + h_j e_j) - grad(x)) / h_j for each
+  // variable j, h_j = 1e-6 max(1, |x_j|) (backwards at an upper bound). Kept for the
+  // point, so that Ipopt's new multipliers at the same x cost no run. Multiple shooting:
+  // a node variable changes only its interval, which alone is rerun. False when a run
+  // fails.
+  bool DifferenceQuotients(const std::vector<double>& x) {
+    if (hess_x_ == x && !hess_d_.empty()) return true;
+    hess_d_.clear();
+    hess_x_.clear();
+    const size_t n = x.size();
+    const int K = intervals();
+    std::vector<Evaluation> base(K > 1 ? K : 1);
+    if (K > 1) {
+      for (int k = 0; k < K; ++k) {
+        Clear(&base[k], n);
+        if (!AddInterval(x, k, &base[k])) return false;
+      }
+    } else {
+      base[0] = Evaluate(x);
+      if (!base[0].ok) return false;
+    }
+    std::vector<Evaluation> d(n);
+    for (size_t j = 0; j < n; ++j) {
+      const OptimizationVariable& v = p_.variables[j];
+      double h = 1e-6 * std::max(1.0, std::abs(x[j]));
+      if (x[j] + h > v.upper) h = -h;
+      std::vector<double> xp = x;
+      xp[j] += h;
+      h = xp[j] - x[j];  // the step as represented
+      Clear(&d[j], n);
+      auto add = [&](const Evaluation& e, const Evaluation& b) {
+        d[j].f += (e.f - b.f) / h;
+        for (size_t i = 0; i < n; ++i) d[j].grad_f[i] += (e.grad_f[i] - b.grad_f[i]) / h;
+        for (size_t i = 0; i < e.jac.size(); ++i) d[j].jac[i] += (e.jac[i] - b.jac[i]) / h;
+      };
+      if (K > 1) {
+        for (int k = 0; k < K; ++k) {
+          if (v.node > 0 && v.node != k) continue;  // its run does not depend on x_j
+          Evaluation e;
+          Clear(&e, n);
+          if (!AddInterval(xp, k, &e)) return false;
+          add(e, base[k]);
+        }
+      } else {
+        Evaluation e;
+        EvaluateInto(xp, &e);
+        if (!e.ok) return false;
+        add(e, base[0]);
+      }
+    }
+    ++r_->hessian_evaluations;
+    hess_d_ = std::move(d);
+    hess_x_ = x;
+    return true;
   }
 
   void set_start(const std::vector<double>& x) { start_ = x; }
+  void set_exact_hessian(bool on) { exact_hessian_ = on; }
   const std::string& last_failure() const { return last_failure_; }
   const std::vector<double>& final_x() const { return final_x_; }
 
@@ -834,7 +928,7 @@ class ShootingNlp : public Ipopt::TNLP {
     n = static_cast<Ipopt::Index>(p_.variables.size());
     m = static_cast<Ipopt::Index>(p_.constraints.size() + continuity_rows());
     nnz_jac_g = n * m;
-    nnz_h_lag = 0;
+    nnz_h_lag = exact_hessian_ ? n * (n + 1) / 2 : 0;
     index_style = C_STYLE;
     return true;
   }
@@ -901,6 +995,34 @@ class ShootingNlp : public Ipopt::TNLP {
     return true;
   }
 
+  // The Hessian of the Lagrangian, obj_factor f + sum lambda_i g_i, from the difference
+  // quotients of the gradients (symmetrised), dense lower triangle row by row.
+  bool eval_h(Ipopt::Index n, const Ipopt::Number* x, bool, Ipopt::Number obj_factor, Ipopt::Index m,
+              const Ipopt::Number* lambda, bool, Ipopt::Index, Ipopt::Index* iRow, Ipopt::Index* jCol,
+              Ipopt::Number* values) override {
+    if (values == nullptr) {
+      Ipopt::Index k = 0;
+      for (Ipopt::Index i = 0; i < n; ++i)
+        for (Ipopt::Index j = 0; j <= i; ++j, ++k) {
+          iRow[k] = i;
+          jCol[k] = j;
+        }
+      return true;
+    }
+    if (!DifferenceQuotients(std::vector<double>(x, x + n))) return false;
+    // column j of the Lagrangian's Hessian: sigma d_j grad f + sum_i lambda_i d_j grad g_i
+    auto entry = [&](Ipopt::Index i, Ipopt::Index j) {
+      const Evaluation& d = hess_d_[j];
+      double h = obj_factor * d.grad_f[i];
+      for (Ipopt::Index r = 0; r < m; ++r) h += lambda[r] * d.jac[r * n + i];
+      return h;
+    };
+    Ipopt::Index k = 0;
+    for (Ipopt::Index i = 0; i < n; ++i)
+      for (Ipopt::Index j = 0; j <= i; ++j, ++k) values[k] = 0.5 * (entry(i, j) + entry(j, i));
+    return true;
+  }
+
   bool intermediate_callback(Ipopt::AlgorithmMode, Ipopt::Index iter, Ipopt::Number obj_value, Ipopt::Number inf_pr,
                              Ipopt::Number inf_du, Ipopt::Number mu, Ipopt::Number, Ipopt::Number, Ipopt::Number,
                              Ipopt::Number alpha_pr, Ipopt::Index ls_trials, const Ipopt::IpoptData*,
@@ -937,6 +1059,9 @@ class ShootingNlp : public Ipopt::TNLP {
   std::vector<double> start_;
   bool has_parameters_ = false;
   Evaluation cache_;
+  bool exact_hessian_ = false;      // ipopt: {hessian_approximation: exact}
+  std::vector<double> hess_x_;      // the point of hess_d_
+  std::vector<Evaluation> hess_d_;  // DifferenceQuotients: per variable, d/dx_j of every gradient
   std::string last_failure_;
   std::vector<double> final_x_;
 };
@@ -1018,6 +1143,8 @@ OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOp
   r.shooting_intervals = problem.shooting.intervals;
   if (problem.shooting.intervals > 1) nlp->SweepStart(&x0);
   nlp->set_start(x0);
+  for (const IpoptOption& o : problem.ipopt)
+    if (o.name == "hessian_approximation") nlp->set_exact_hessian(o.text == "exact");
   nlp->Evaluate(x0, /*first=*/true);
 
   // Ipopt without its console output (mbdae prints its own lines; stdout may be JSON).
@@ -1109,6 +1236,7 @@ std::string OptimizationResult::Report() const {
   for (size_t k = 0; k < variable_names.size(); ++k) s << "  " << variable_names[k] << " = " << Num(variables[k]) << "\n";
   s << "iterations: " << iterations << ", gradient evaluations: " << gradient_evaluations;
   if (failed_evaluations) s << " (" << failed_evaluations << " failed)";
+  if (hessian_evaluations) s << ", Hessians by differences of gradients: " << hessian_evaluations;
   s << ", runs: " << runs << "\n";
   char buf[160];
   std::snprintf(buf, sizeof buf, "CPU time %.3g s (gradient evaluations %.3g s, %.0f %%), wall time %.3g s\n", cpu_time,
@@ -1134,7 +1262,7 @@ std::string OptimizationResult::Json() const {
   s << "}";
   if (!failure_reason.empty()) s << ", \"failure_reason\": " << JsonString(failure_reason);
   s << ", \"gradient_evaluations\": " << gradient_evaluations << ", \"failed_evaluations\": " << failed_evaluations
-    << ", \"runs\": " << runs << ", \"gradient_cpu_time\": " << JsonNumber(gradient_cpu_time)
+    << ", \"hessian_evaluations\": " << hessian_evaluations << ", \"runs\": " << runs << ", \"gradient_cpu_time\": " << JsonNumber(gradient_cpu_time)
     << ", \"cpu_time\": " << JsonNumber(cpu_time) << ", \"wall_time\": " << JsonNumber(wall_time) << "}";
   return s.str();
 }

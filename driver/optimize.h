@@ -73,7 +73,7 @@ struct OptimizationVariable {
   bool start_given = false;  // `start:` in the problem file
   // Multiple shooting: a node variable, state `state` (Shooting::states index) at the
   // start of interval `node` (1 .. intervals - 1), named PARAMETER@NODE; its start is the
-  // state reached by the runs from the starting point (a forward sweep).
+  // state's `start:` or the state reached by the runs from the starting point (a forward sweep).
   int node = 0, state = -1;
 };
 
@@ -90,6 +90,7 @@ struct ShootingState {
   bool angle = false;     // an angle measure: its turns continue from the node's value
   double lower = -std::numeric_limits<double>::infinity();  // bounds of the node variables
   double upper = std::numeric_limits<double>::infinity();
+  std::vector<double> start;  // `start:` of the node variables (nodes 1 .. intervals - 1), or empty
 };
 
 struct Shooting {
@@ -127,8 +128,9 @@ struct OptimizationProblem {
   GradientMethod method = GradientMethod::kAdjoint;
   Shooting shooting;
   // Applied after mbdae's defaults (hessian_approximation limited-memory, print_level 0):
-  // any registered Ipopt option but hessian_approximation exact (mbdae gives no second
-  // derivatives).
+  // any registered Ipopt option. hessian_approximation exact: mbdae gives the Hessian of the
+  // Lagrangian by forward differences of the exact gradients (one gradient evaluation per
+  // variable and Ipopt iteration).
   std::vector<IpoptOption> ipopt;
 };
 
@@ -183,6 +185,9 @@ struct OptimizationResult {
   double shooting_defect = 0;
   long gradient_evaluations = 0;  // ComputeGradient calls (each: a run and its gradient)
   long failed_evaluations = 0;    // of those, failed runs (Ipopt cut its step)
+  // Hessians of the Lagrangian by differences of the gradients (`hessian_approximation:
+  // exact`; their gradient evaluations are counted above)
+  long hessian_evaluations = 0;
   long runs = 0;                  // whole simulation runs, the final run included
   double gradient_cpu_time = 0;   // CPU seconds inside ComputeGradient (runs + gradients)
   double cpu_time = 0;            // CPU seconds of Optimize
