@@ -111,7 +111,8 @@ mbdae_status mbdae_set_spline_points(mbdae_model* model, int index, const double
                                      const double* y, int n);
 
 /* Simulation settings, with the names and value syntax of the model file's `simulation:`
- * block: "t_end", "output_step", "integrator" (hht|ida), "hht.alpha", "hht.step",
+ * block: "t_end", "output_step", "integrator" (hht|ida|kinematic: kinematic
+ * analysis, for models without degrees of freedom), "hht.alpha", "hht.step",
  * "hht.adaptive" (true|false), "hht.tolerance", "hht.modified", "hht.form"
  * (equilibrium|negrut), "ida.rtol", "ida.atol". Numbers are plain numbers (no
  * expressions). Validated as the program validates its options: an unknown key is

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "api/session.h"
+#include "dae/kinematic.h"
 #include "dae/klu_solver.h"
 #include "dae/sparse.h"
 #include "io/results_file.h"
@@ -483,8 +484,10 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
       o.integrator = mbs::IntegratorKind::kHht;
     else if (v == "ida")
       o.integrator = mbs::IntegratorKind::kIda;
+    else if (v == "kinematic")
+      o.integrator = mbs::IntegratorKind::kKinematic;
     else
-      throw ApiError(MBDAE_ERROR_INPUT, "option integrator: expected hht or ida, got '" + v + "'");
+      throw ApiError(MBDAE_ERROR_INPUT, "option integrator: expected hht, ida or kinematic, got '" + v + "'");
   } else if (key == "hht.alpha") {
     o.hht_alpha = ParseOptionNumber(key, value);
   } else if (key == "hht.step") {
@@ -549,6 +552,10 @@ void WriteResults(const mbdae_model& m, const std::string& path) {
   summary.integrator_detail = m.run.integrator_detail;
   summary.t_end = m.run.settings.t_end;
   summary.counters = Counters(m);
+  if (const auto* kinematic = dynamic_cast<const dae::KinematicSolver*>(m.integrator.get())) {
+    summary.max_newton_iterations = kinematic->statistics().max_newton_iterations;
+    summary.singular_points = kinematic->statistics().singular_points;
+  }
   summary.wall_time = m.wall_time;
   summary.solver_cpu_time = m.solver_cpu_time;
   summary.rows = static_cast<long>(m.rows.size());

@@ -165,8 +165,10 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
         cl.overrides.integrator = mbs::IntegratorKind::kHht;
       else if (v == "ida")
         cl.overrides.integrator = mbs::IntegratorKind::kIda;
+      else if (v == "kinematic")
+        cl.overrides.integrator = mbs::IntegratorKind::kKinematic;
       else
-        throw UsageError("--integrator: expected hht or ida, got '" + v + "'");
+        throw UsageError("--integrator: expected hht, ida or kinematic, got '" + v + "'");
     } else if (arg == "--t-end") {
       only_simulate();
       cl.overrides.t_end = number();
@@ -346,7 +348,10 @@ std::string ModelInfo::Text() const {
   line("coordinates:           ", coordinates.size(), nullptr);
   line("constraint equations:  ", constraints.size(), nullptr);
   line("redundant equations:   ", redundant.size(), &redundant);
-  s << "degrees of freedom:    " << degrees_of_freedom << "\n";
+  s << "degrees of freedom:    " << degrees_of_freedom;
+  if (degrees_of_freedom == 0)
+    s << " (every motion driven: `integrator: kinematic` solves the model by kinematic analysis)";
+  s << "\n";
   line("joints:                ", joints.size(), &joints);
   line("measures:              ", measures.size(), &measures);
   line("forces:                ", forces.size(), &forces);

@@ -40,8 +40,9 @@ namespace {
 
 const char* kUsage =
     "usage:\n"
-    "  mbdae simulate MODEL.yaml [-o RESULTS.h5] [--integrator hht|ida] [--t-end T]\n"
-    "                 [--output-step H] [--step H] [--alpha A] [--adaptive] [--tolerance TOL]\n"
+    "  mbdae simulate MODEL.yaml [-o RESULTS.h5] [--integrator hht|ida|kinematic]\n"
+    "                 [--t-end T] [--output-step H] [--step H] [--alpha A] [--adaptive]\n"
+    "                 [--tolerance TOL]\n"
     "                 [--modified | --no-modified] [--hht-form equilibrium|negrut]\n"
     "                 [--rtol R] [--atol A]\n"
     "                 [--set NAME=VALUE ...] [--quiet]\n"
@@ -60,7 +61,9 @@ const char* kHelp =
     "time to RESULTS.h5 (default: the model's path with .h5 instead of .yaml/.yml/.json).\n"
     "Command-line values override the model's `simulation:` block:\n"
     "  -o, --output FILE     results file\n"
-    "  --integrator hht|ida  integrator\n"
+    "  --integrator hht|ida|kinematic\n"
+    "                        integrator; kinematic: kinematic analysis of a model\n"
+    "                        without degrees of freedom (every motion driven)\n"
     "  --t-end T             end time\n"
     "  --output-step H       time between output rows\n"
     "  --step H              HHT step (initial step when adaptive)\n"
@@ -179,8 +182,9 @@ int RunInfo(const CommandLine& cl) {
 
 int RunCheck(const CommandLine& cl) {
   mbs::Model model = Load(cl);
-  driver::ResolveSettings(model.simulation, cl.overrides);
+  const mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
   driver::Assembly asmb = driver::Assemble(model);
+  driver::CheckIntegrator(*asmb.kept_system, settings);
   ModelInfo info = Describe(model, asmb);
   std::cout << cl.model_path << ": ok: " << info.bodies.size() << " bodies, "
             << info.degrees_of_freedom << " degrees of freedom, " << info.redundant.size()
@@ -212,8 +216,14 @@ int RunSimulate(const CommandLine& cl) {
   mbs::Model model = Load(cl);
   mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
   driver::Assembly asmb = driver::Assemble(model);
+  driver::CheckIntegrator(*asmb.kept_system, settings);
   if (!cl.quiet) {
     std::fprintf(stderr, "mbdae: %s\n", asmb.Report().c_str());
+    if (driver::DegreesOfFreedom(*asmb.kept_system) == 0 && !settings.integrator_named)
+      std::fprintf(stderr,
+                   "mbdae: note: the model has no degrees of freedom (every motion driven): "
+                   "`integrator: kinematic` (or --integrator kinematic) solves it by kinematic "
+                   "analysis, to the Newton tolerance at each output time and faster\n");
     if (!asmb.redundant.empty()) {
       std::string names;
       for (const auto& n : asmb.redundant_names()) names += (names.empty() ? "" : ", ") + n;

@@ -17,6 +17,7 @@
 
 #include "dae/hht.h"
 #include "dae/ida.h"
+#include "dae/kinematic.h"
 
 namespace mbdae::driver {
 namespace {
@@ -84,7 +85,37 @@ std::string Prefix(const mbs::Model& model) { return model.file.empty() ? "" : m
 }  // namespace
 
 const char* IntegratorName(mbs::IntegratorKind kind) {
-  return kind == mbs::IntegratorKind::kIda ? "ida" : "hht";
+  switch (kind) {
+    case mbs::IntegratorKind::kIda: return "ida";
+    case mbs::IntegratorKind::kKinematic: return "kinematic";
+    case mbs::IntegratorKind::kHht: break;
+  }
+  return "hht";
+}
+
+int DegreesOfFreedom(const dae::MechanicalSystem& kept_system) {
+  return kept_system.num_coordinates() - kept_system.num_constraints();
+}
+
+void CheckIntegrator(const dae::MechanicalSystem& kept_system, const mbs::SimulationSettings& settings) {
+  if (settings.integrator != mbs::IntegratorKind::kKinematic) return;
+  const int dof = DegreesOfFreedom(kept_system);
+  if (dof == 0) return;
+  const mbs::SourceLocation& at = settings.integrator_where;
+  std::string where;
+  if (!at.file.empty()) {
+    where = at.file + ":";
+    if (at.line > 0) where += std::to_string(at.line) + ":" + std::to_string(at.column) + ":";
+    where += " simulation: ";
+  } else {
+    where = "--integrator kinematic: ";
+  }
+  throw InputError(where + "the kinematic analysis needs a model without degrees of freedom (every "
+                   "motion driven); this one has " + std::to_string(dof) + " degree" +
+                   (dof == 1 ? "" : "s") + " of freedom (" +
+                   std::to_string(kept_system.num_coordinates()) + " coordinates, " +
+                   std::to_string(kept_system.num_constraints()) +
+                   " independent constraint equations): use hht or ida");
 }
 
 mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
@@ -92,7 +123,11 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   mbs::SimulationSettings s = model_settings;
   if (o.t_end) s.t_end = *o.t_end;
   if (o.output_step) s.output_step = *o.output_step;
-  if (o.integrator) s.integrator = *o.integrator;
+  if (o.integrator) {
+    s.integrator = *o.integrator;
+    s.integrator_named = true;
+    s.integrator_where = mbs::SourceLocation();  // chosen on the command line
+  }
   if (o.hht_alpha) s.hht_alpha = *o.hht_alpha;
   if (o.hht_step) s.hht_step = *o.hht_step;
   if (o.hht_tolerance) s.hht_tolerance = *o.hht_tolerance;
@@ -387,9 +422,17 @@ std::string SimulationSummary::FullReport() const {
                                          : "failed: " + failure_reason)
     << ", t = "
     << Num(t_reached) << " of " << Num(t_end) << "\n";
-  s << "steps:                 " << counters.steps_accepted << " accepted, "
-    << counters.steps_rejected << " rejected\n";
-  s << "Newton iterations:     " << counters.newton_iterations << "\n";
+  if (integrator == "kinematic") {
+    s << "solved times:          " << counters.steps_accepted << "\n";
+    s << "Newton iterations:     " << counters.newton_iterations << " (at most "
+      << max_newton_iterations << " at one time)\n";
+    if (singular_points > 0)
+      s << "singular points:       " << singular_points << " (C_q singular: minimum-norm solves)\n";
+  } else {
+    s << "steps:                 " << counters.steps_accepted << " accepted, "
+      << counters.steps_rejected << " rejected\n";
+    s << "Newton iterations:     " << counters.newton_iterations << "\n";
+  }
   s << "Jacobian evaluations:  " << counters.jacobian_evaluations << "\n";
   s << "factorizations:        " << counters.factorizations << "\n";
   s << "wall time:             " << Num(wall_time) << " s\n";
@@ -450,9 +493,13 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_modified", settings.hht_modified ? 1 : 0);
     file.SetAttribute("hht_form", settings.hht_form);
     file.SetAttribute("hht_start", settings.hht_start);
-  } else {
+  } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
+  } else {
+    const dae::KinematicOptions kinematic;
+    file.SetAttribute("kinematic_tolerance", kinematic.tolerance);
+    file.SetAttribute("kinematic_max_iterations", static_cast<long>(kinematic.max_iterations));
   }
   file.SetAttribute("status", "running");
   file.SetAttribute("t_reached", 0.0);
@@ -481,6 +528,10 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
   file.SetAttribute("max_position_violation", summary.max_position_violation);
   file.SetAttribute("max_velocity_violation", summary.max_velocity_violation);
   file.SetAttribute("rows_with_integrator_accelerations", summary.rows_with_integrator_accelerations);
+  if (summary.integrator == "kinematic") {
+    file.SetAttribute("newton_iterations_max", static_cast<long>(summary.max_newton_iterations));
+    file.SetAttribute("singular_points", summary.singular_points);
+  }
 }
 
 std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
@@ -492,6 +543,10 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
     std::string error;
     if (!o.IsValid(&error)) throw InputError("hht settings: " + error);
     return dae::MakeHhtIntegrator(system, o);
+  }
+  if (settings.integrator == mbs::IntegratorKind::kKinematic) {
+    CheckIntegrator(system, settings);
+    return dae::MakeKinematicSolver(system);
   }
   return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
 }
@@ -773,6 +828,10 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   }
 
   summary.counters = integrator->summary();
+  if (const auto* kinematic = dynamic_cast<const dae::KinematicSolver*>(integrator.get())) {
+    summary.max_newton_iterations = kinematic->statistics().max_newton_iterations;
+    summary.singular_points = kinematic->statistics().singular_points;
+  }
   summary.rows_with_integrator_accelerations = rows.fallbacks();
   summary.rows = results ? results->rows() : rows_computed;
   summary.status = ok ? SimulationSummary::Status::kDone : SimulationSummary::Status::kFailed;

@@ -58,7 +58,15 @@ struct SettingsOverrides {
 mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
                                         const SettingsOverrides& overrides);
 
-const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida"
+const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida" | "kinematic"
+
+// Degrees of freedom of a system of independent constraint equations (Assembly::
+// kept_system): coordinates minus equations.
+int DegreesOfFreedom(const dae::MechanicalSystem& kept_system);
+// Throws InputError when settings.integrator is kinematic and kept_system has degrees of
+// freedom: the message names where the file chose it (file:line:column, or
+// `--integrator kinematic` for an override) and the number of degrees of freedom.
+void CheckIntegrator(const dae::MechanicalSystem& kept_system, const mbs::SimulationSettings& settings);
 
 // The integrators' options of the settings. HhtOptionsOf throws InputError for an
 // unknown form or start.
@@ -133,7 +141,7 @@ struct SimulationOptions {
 struct SimulationSummary {
   enum class Status { kDone, kFailed, kInterrupted };
   Status status = Status::kFailed;
-  std::string integrator;           // "hht" | "ida"
+  std::string integrator;           // "hht" | "ida" | "kinematic"
   std::string integrator_detail;    // Integrator::name()
   std::string failure_reason;
   double t_end = 0;
@@ -149,6 +157,10 @@ struct SimulationSummary {
   // Rows whose a and lambda are the integrator's although output_accelerations is
   // "solved" (the acceleration-level system was singular or could not be evaluated).
   long rows_with_integrator_accelerations = 0;
+  // Kinematic analysis only: the most Newton iterations at one solved time, and the
+  // times solved by the minimum-norm fallback where C_q was singular (dae/kinematic.h).
+  int max_newton_iterations = 0;
+  long singular_points = 0;
   std::vector<std::string> redundant_constraints;
   std::string results_path;
   // The model's objectives (Model::objectives) of a run that reached t_end: integral by
@@ -195,8 +207,8 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run);
 // counters, times, violations.
 void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summary);
 
-// The integrator of the settings (HHT or IDA) on `system`, not yet initialised. Throws
-// InputError for settings that cannot be used.
+// The integrator of the settings (HHT, IDA or the kinematic analysis) on `system`, not
+// yet initialised. Throws InputError for settings that cannot be used (CheckIntegrator).
 std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
                                                 const mbs::SimulationSettings& settings,
                                                 const std::function<void(dae::HhtOptions&)>& adjust_hht = {});

@@ -1319,7 +1319,12 @@ class Loader {
     if (const YAML::Node n = node["t_end"]) s.t_end = positive(n, "t_end");
     if (const YAML::Node n = node["output_step"]) s.output_step = positive(n, "output_step");
     if (const YAML::Node n = node["integrator"]) {
-      s.integrator = Enum<IntegratorKind>(n, element, "integrator", {{"hht", IntegratorKind::kHht}, {"ida", IntegratorKind::kIda}});
+      s.integrator = Enum<IntegratorKind>(n, element, "integrator",
+                                          {{"hht", IntegratorKind::kHht},
+                                           {"ida", IntegratorKind::kIda},
+                                           {"kinematic", IntegratorKind::kKinematic}});
+      s.integrator_named = true;
+      s.integrator_where = At(n);
     }
     if (const YAML::Node n = node["output_accelerations"]) {
       s.output_accelerations = Enum<std::string>(n, element, "output_accelerations",

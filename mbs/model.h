@@ -199,7 +199,8 @@ struct Objective {
   SourceLocation where;
 };
 
-enum class IntegratorKind { kHht, kIda };
+// kKinematic: kinematic analysis of a model without degrees of freedom (dae/kinematic.h).
+enum class IntegratorKind { kHht, kIda, kKinematic };
 
 // The most output rows a run may have (t_end / output_step); the loaders refuse more
 // with the file and line, the driver (driver/simulation.h) settings from the command line.
@@ -209,6 +210,10 @@ struct SimulationSettings {
   double t_end = 1.0;
   double output_step = 1e-2;
   IntegratorKind integrator = IntegratorKind::kHht;
+  // Whether the integrator was chosen (in the file or by an override) rather than left
+  // at its default, and where the file chose it (line 0: not in the file).
+  bool integrator_named = false;
+  SourceLocation integrator_where;
   double hht_alpha = -0.1;
   double hht_step = 1e-3;
   bool hht_adaptive = false;

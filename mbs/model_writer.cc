@@ -288,7 +288,9 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   s << "simulation:\n";
   s << "  t_end: " << Num(sim.t_end) << "\n";
   s << "  output_step: " << Num(sim.output_step) << "\n";
-  s << "  integrator: " << (sim.integrator == IntegratorKind::kHht ? "hht" : "ida") << "\n";
+  s << "  integrator: " << (sim.integrator == IntegratorKind::kHht   ? "hht"
+                                 : sim.integrator == IntegratorKind::kIda ? "ida"
+                                                                          : "kinematic") << "\n";
   s << "  output_accelerations: " << sim.output_accelerations << "\n";
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)

@@ -248,7 +248,9 @@ class Splines(_Named):
 class Options:
     """The simulation settings as a mapping key -> value, with the keys and values of the
     model file's ``simulation:`` block (:data:`OPTIONS`): ``m.options["hht.alpha"] = -0.3``,
-    ``m.options["integrator"] = "ida"``, ``m.options["hht.adaptive"] = True``.
+    ``m.options["integrator"] = "ida"`` (``"hht"``, ``"ida"`` or ``"kinematic"``: the
+    kinematic analysis of a model without degrees of freedom),
+    ``m.options["hht.adaptive"] = True``.
 
     Values are given as numbers, booleans or text and read back as float, bool or str.
     They take effect at the next assembly (set them before solving).
