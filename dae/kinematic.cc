@@ -308,9 +308,14 @@ class Kinematic final : public KinematicSolver {
       return false;
     }
     if (end == Newton::kSingular) return SolveSingular(t, from, x, total, best);
-    // Velocities: C_q v = -C_t with C_q at the converged positions.
+    // C_q at the converged positions, factorised for the velocities, C_q v = -C_t; with
+    // it one more Newton correction of the positions, which costs one solve and brings
+    // max |C| from the tolerance to the rounding level (Newton converges quadratically).
     if (!FactorConstraintJacobian()) return SolveSingular(t, from, x, total, 0.0);
     Count(total);
+    for (int i = 0; i < nc_; ++i) work_[i] = -c_[i];
+    klu_->Solve(work_.data());
+    for (int i = 0; i < nq_; ++i) x->q[i] += work_[i];
     for (int i = 0; i < nc_; ++i) x->v[i] = -ct_[i];
     klu_->Solve(x->v.data());
     return Accelerations(x);

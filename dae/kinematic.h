@@ -2,7 +2,9 @@
 // coordinate is fixed by the constraints (and the constraints' time dependence, i.e.
 // the driven motions), so the state at a time t follows from t alone:
 //
-//   C(q, t) = 0                            Newton on the positions (KLU on C_q),
+//   C(q, t) = 0                            Newton on the positions (KLU on C_q; once
+//                                          converged, one more correction with the
+//                                          factorisation the velocities use),
 //   C_q v = -C_t                           the velocities,
 //   [M C_q^T; C_q 0] [a; lambda] = [Q; gamma]   accelerations and multipliers
 //                                          (the AccelerationSolver of dae/consistent.h;

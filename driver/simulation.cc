@@ -784,7 +784,11 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
     WriteRunAttributes(*results, run);
   }
 
-  OutputRowBuilder rows(model, asmb, settings);
+  // The kinematic analysis's a and lambda are the solved ones already (the same
+  // acceleration-level solve at the same (t, q, v)): the rows take them as they are.
+  mbs::SimulationSettings row_settings = settings;
+  if (settings.integrator == mbs::IntegratorKind::kKinematic) row_settings.output_accelerations = "integrator";
+  OutputRowBuilder rows(model, asmb, row_settings);
   long rows_computed = 0;
   auto write_row = [&](const dae::State& x) {
     const io::ResultsRow& row = rows.Compute(x);
