@@ -145,3 +145,28 @@ def test_python_package_takes_the_kinematic_integrator():
         x, _, _ = slider(t)
         assert len(t) == 201
         assert np.max(np.abs(q[:, 14] - x)) < 1e-12
+
+
+def parallelogram(tmp_path, step):
+    out = str(tmp_path / ("pd%s.h5" % step))
+    p = run(["simulate", os.path.join(MODELS, "parallelogram_driven.yaml"), "-o", out,
+             "--output-step", step, "--quiet"], tmp_path)
+    with h5py.File(out, "r") as f:
+        t = f["/time"][:]
+        gap = np.abs(f["/measures/phi0"][:] - f["/measures/phi1"][:]).max()
+    return p, t, gap
+
+
+def test_singular_positions_the_motion_passes(tmp_path):
+    """docs/model-format.md, "Kinematic analysis": the parallelogram driven at its crank,
+    flat at t = 1 s and 3 s (measured: the cranks parallel to 2.5e-14, 1.8e-14, 9.4e-7)."""
+    p, t, gap = parallelogram(tmp_path, "0.007")  # no output time on a singular instant
+    assert p.returncode == 0, p.stderr
+    assert t[-1] == 4.0 and gap < 1e-12, gap
+    p, t, gap = parallelogram(tmp_path, "0.01")   # a row at t = 1: not determined there
+    assert p.returncode == 3, p.stderr
+    assert "singular at t = 1 " in p.stderr, p.stderr
+    assert abs(t[-1] - 0.99) < 1e-12 and gap < 1e-12, gap
+    p, t, gap = parallelogram(tmp_path, "0.03")   # passes t = 1 less accurately, ends after t = 3
+    assert p.returncode == 3, p.stderr
+    assert abs(t[-1] - 3.0) < 1e-12 and gap < 1e-5, gap
