@@ -368,7 +368,8 @@ void mbdae_optimization_free(mbdae_optimization* result);
  * {"status": "solved" | "failed", "objective": ..., "iterations": ..., "variables":
  * {"NAME": ...}, "constraint_violation": ..., "ipopt_status": ..., "objective_name": ...,
  * "constraints": {"OBJECTIVE": value}, "gradient_evaluations": ..., "failed_evaluations":
- * ..., "runs": ..., "gradient_cpu_time": ..., "cpu_time": ..., "wall_time": ...}
+ * ..., "hessian_evaluations": ..., "runs": ..., "gradient_cpu_time": ..., "cpu_time": ...,
+ * "wall_time": ..., "shooting_intervals": ..., "shooting_defect": ...}
  * (numbers with 17 significant digits, non-finite as null). buf = NULL with size = 0 asks
  * for the length: *length (not NULL) is then the number of bytes needed, the NUL
  * included; a buffer shorter than that is MBDAE_ERROR_SIZE. */

@@ -68,8 +68,10 @@ class OptimizationResult:
       ``constraint_violation``: the largest distance of a constraint to its bounds;
     - ``iterations``; ``history``: numpy array, one row per iteration (row 0: the
       starting point), columns :data:`HISTORY_COLUMNS`;
-    - ``gradient_evaluations``, ``failed_evaluations``, ``runs`` (whole simulations, the
-      final run included); ``gradient_cpu_time``, ``cpu_time``, ``wall_time`` (seconds);
+    - ``gradient_evaluations``, ``failed_evaluations``, ``hessian_evaluations`` (Hessians
+      from differences of gradients, ``ipopt: {hessian_approximation: exact}``), ``runs``
+      (whole simulations, the final run included); ``shooting_intervals``,
+      ``shooting_defect`` (multiple shooting: the largest continuity defect); ``gradient_cpu_time``, ``cpu_time``, ``wall_time`` (seconds);
     - ``results``: the results file written (None without one); ``failure_reason``.
 
     ``str(result)`` is the report ``mbdae optimize`` prints; :meth:`as_dict` the object
@@ -92,6 +94,9 @@ class OptimizationResult:
         self.history = history
         self.gradient_evaluations = int(summary["gradient_evaluations"])
         self.failed_evaluations = int(summary["failed_evaluations"])
+        self.hessian_evaluations = int(summary.get("hessian_evaluations", 0))
+        self.shooting_intervals = int(summary.get("shooting_intervals", 1))
+        self.shooting_defect = _number(summary.get("shooting_defect", 0.0))
         self.runs = int(summary["runs"])
         self.gradient_cpu_time = _number(summary["gradient_cpu_time"])
         self.cpu_time = _number(summary["cpu_time"])

@@ -108,6 +108,19 @@ def test_fixed_parameter_and_start_from_a_string():
     assert r.history[0, 2] == pytest.approx(1.0, abs=1e-8)  # measured 3.5e-10 off (Newton)
 
 
+def test_exact_hessian_and_shooting_counts_reach_python():
+    # ipopt: {hessian_approximation: exact} (the Lagrangian's Hessian from differences of
+    # the adjoint gradients): the same optimum; the counts reach OptimizationResult
+    text = open(PROBLEM).read().replace("ipopt: {", "ipopt: {hessian_approximation: exact, ")
+    r = mbdae.optimize_string(text, os.path.join(HERE, "inline.yaml"))
+    assert r.solved
+    assert abs(r.objective - OPTIMUM) / OPTIMUM < 1e-4
+    assert 1 <= r.hessian_evaluations <= r.iterations + 1
+    # a Hessian: one evaluation per ordinate (21) besides the point's own
+    assert r.gradient_evaluations >= 21 * r.hessian_evaluations
+    assert r.shooting_intervals == 1 and r.shooting_defect == 0
+
+
 @pytest.mark.parametrize("change,line,needle", [
     (("upper: 40}", "upper: 40, start: -41}"), 6, "start -41 is outside the bounds [-40, 40]"),
     (("upper: 40}", "upper: 40, start: [0, 1]}"), 6, "start has 2 values, the variable 21 ordinates"),
