@@ -278,7 +278,7 @@ TEST(ApiErrors, BadOptionValuesAreInputErrorsAndChangeNothing) {
   EXPECT_EQ(mbdae_set_option(m, "output_step", "0.01s"), MBDAE_ERROR_INPUT);
   EXPECT_STREQ(mbdae_last_error(), "option output_step: expected a number, got '0.01s'");
   EXPECT_EQ(mbdae_set_option(m, "integrator", "euler"), MBDAE_ERROR_INPUT);
-  EXPECT_STREQ(mbdae_last_error(), "option integrator: expected hht or ida, got 'euler'");
+  EXPECT_STREQ(mbdae_last_error(), "option integrator: expected hht, ida or kinematic, got 'euler'");
   EXPECT_EQ(mbdae_set_option(m, "hht.adaptive", "yes"), MBDAE_ERROR_INPUT);
   EXPECT_STREQ(mbdae_last_error(), "option hht.adaptive: expected true or false, got 'yes'");
   EXPECT_EQ(mbdae_set_option(m, "hht.alpha", "-0.5"), MBDAE_ERROR_INPUT);
