@@ -3,6 +3,7 @@
 #include <idas/idas.h>
 #include <nvector/nvector_serial.h>
 #include <sundials/sundials_context.h>
+#include <sundials/sundials_linearsolver.h>
 #include <sunlinsol/sunlinsol_klu.h>
 #include <sunmatrix/sunmatrix_sparse.h>
 
@@ -12,6 +13,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <functional>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -40,6 +43,9 @@ bool IdaOptions::IsValid(std::string* error) const {
   if (max_steps < 0) return fail("max_steps must be >= 0 (0: no limit)");
   if (!(min_relative_step >= 0) || !(min_relative_step < 1e-3))
     return fail("min_relative_step must be in [0, 1e-3) (0: no limit)");
+  if (!(roundoff_factor >= 0) || !std::isfinite(roundoff_factor))
+    return fail("roundoff_factor must be >= 0 and finite (0: no rounding-level rules)");
+  if (max_restarts < 0) return fail("max_restarts must be >= 0 (0: no restarts)");
   return true;
 }
 
@@ -87,6 +93,8 @@ GglResidual::GglResidual(MechanicalSystem& system)
   constraint_dt_.assign(nc, 0.0);
   for (int m = 0; m < kNumMatrices; ++m) val_[m].assign(P(static_cast<Matrix>(m)).nnz(), 0.0);
   tdq_mu_.assign(P(Matrix::kConstraintTDq).nnz(), 0.0);
+  fixed_.assign(size(), 0.0);
+  scaled_.assign(2 * nq, 0.0);
 }
 
 int GglResidual::Residual(double t, const double* y, const double* yp, double* F) {
@@ -132,6 +140,39 @@ int GglResidual::Residual(double t, const double* y, const double* yp, double* F
     F4[r] = constraint_dt_[r];
   }
   MultiplyAdd(pc, cq, 1.0, v, F4);
+
+  // Magnitudes of the terms of every row (their rounding error is about machine epsilon
+  // times these): fixed_ the terms that do not scale with cj, scaled_ the magnitude
+  // that one unit in the last place of q or v takes through q' and v'
+  // (= cj (y - y_predicted) + ...); RoundingLevel combines them.
+  std::fill(fixed_.begin(), fixed_.end(), 0.0);
+  std::fill(scaled_.begin(), scaled_.end(), 0.0);
+  double* f1 = fixed_.data();
+  double* f2 = f1 + nq;
+  double* f3 = f2 + nq;
+  double* f4 = f3 + nc;
+  double* s1 = scaled_.data();
+  double* s2 = s1 + nq;
+  for (int i = 0; i < nq; ++i) {
+    f1[i] = std::max(std::abs(qp[i]), std::abs(v[i]));
+    f2[i] = std::abs(force_[i]);
+    s1[i] = std::abs(q[i]);
+  }
+  for (int r = 0; r < nc; ++r) f4[r] = std::abs(constraint_dt_[r]);
+  for (int c = 0; c < nq; ++c) {
+    for (int k = pm.col_start[c]; k < pm.col_start[c + 1]; ++k) {
+      f2[pm.row_index[k]] += std::abs(mass[k] * vp[c]);
+      s2[pm.row_index[k]] += std::abs(mass[k] * v[c]);
+    }
+    for (int k = pc.col_start[c]; k < pc.col_start[c + 1]; ++k) {
+      const int r = pc.row_index[k];
+      const double a = std::abs(cq[k]);
+      f1[c] = std::max(f1[c], a * std::abs(mu[r]));
+      f2[c] += a * std::abs(lambda[r]);
+      f3[r] += a * std::abs(q[c]);
+      f4[r] += a * std::abs(v[c]);
+    }
+  }
   return 0;
 }
 
@@ -225,6 +266,45 @@ int GglResidual::ParameterJacobian(double t, const double* y, const double* yp, 
   return 0;
 }
 
+void GglResidual::RoundingLevel(double cj, double* level) const {
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  const int n = size(), nd = 2 * nq_;
+  for (int i = 0; i < n; ++i)
+    level[i] = eps * (i < nd ? std::max(fixed_[i], std::abs(cj) * scaled_[i]) : fixed_[i]);
+}
+
+GglRounding::GglRounding(const GglResidual& ggl, double factor)
+    : ggl_(ggl), factor_(factor), resolution_(ggl.size(), 0.0), work_(ggl.size(), 0.0),
+      level_(ggl.size(), 0.0) {}
+
+void GglRounding::Update(double cj, const std::function<void(double*)>& solve) {
+  cj_ = cj;
+  Clear();
+  if (!(factor_ > 0)) return;
+  const int n = ggl_.size();
+  ggl_.RoundingLevel(cj, level_.data());
+  unsigned state = 12345u;  // the same signs at every Update
+  for (int pass = 0; pass < 2; ++pass) {
+    for (int i = 0; i < n; ++i) {
+      state = state * 1664525u + 1013904223u;  // the LCG of Numerical Recipes
+      work_[i] = (state & 0x80000000u ? 1.0 : -1.0) * factor_ * level_[i];
+    }
+    solve(work_.data());
+    for (int i = 0; i < n; ++i) resolution_[i] = std::max(resolution_[i], std::abs(work_[i]));
+  }
+}
+
+bool GglRounding::ZeroIfRounding(double* b) {
+  if (!(factor_ > 0)) return false;
+  const int n = ggl_.size();
+  ggl_.RoundingLevel(cj_, level_.data());
+  for (int i = 0; i < n; ++i)
+    if (!(std::abs(b[i]) <= factor_ * level_[i])) return false;
+  std::fill(b, b + n, 0.0);
+  ++stops_;
+  return true;
+}
+
 }  // namespace internal
 
 namespace {
@@ -247,6 +327,7 @@ class IdaIntegrator final : public Integrator {
     row_index_.assign(p.row_index.begin(), p.row_index.end());
     values_.assign(p.nnz(), 0.0);
     state_.Resize(ggl_.nq(), ggl_.nc());
+    rounding_ = std::make_unique<internal::GglRounding>(ggl_, options_.roundoff_factor);
   }
 
   void Initialize(const State& x0) override {
@@ -272,6 +353,14 @@ class IdaIntegrator final : public Integrator {
     y_.reset();
     context_.reset();
     summary_ = Summary{};
+    counted_ = Summary{};
+    history_.clear();
+    history_first_ = history_count_ = 0;
+    if (options_.max_restarts > 0 && quad_spec_.size == 0)
+      history_.assign(kHistory, Snapshot{0.0, std::vector<double>(n), std::vector<double>(n)});
+    restarts_in_a_row_ = 0;
+    restarts_ = 0;
+    restart_clear_ = -std::numeric_limits<double>::infinity();
     tiny_steps_ = 0;
     callback_error_.clear();
     ida_error_.clear();
@@ -303,8 +392,8 @@ class IdaIntegrator final : public Integrator {
     const sunindextype nnz = std::max<sunindextype>(1, static_cast<sunindextype>(values_.size()));
     matrix_.reset(SUNSparseMatrix(n, n, nnz, CSC_MAT, ctx));
     if (!matrix_) throw std::runtime_error("IDA: SUNSparseMatrix failed");
-    solver_.reset(SUNLinSol_KLU(y_.get(), matrix_.get(), ctx));
-    if (!solver_) throw std::runtime_error("IDA: SUNLinSol_KLU failed");
+    solver_.reset(MakeLinearSolver(ctx));
+    if (!solver_) throw std::runtime_error("IDA: SUNLinSolNewEmpty failed");
 
     mem_.reset(IDACreate(ctx));
     if (!mem_) throw std::runtime_error("IDA: IDACreate failed");
@@ -324,7 +413,9 @@ class IdaIntegrator final : public Integrator {
       const double alg = options_.algebraic_atol > 0 ? options_.algebraic_atol : 1e100;
       for (int i = 0; i < n; ++i) atol[i] = i < 2 * nq ? options_.atol : alg;
     }
-    Check(IDASVtolerances(mem, options_.rtol, atol_.get()), "IDASVtolerances");
+    rounding_->Clear();
+    near_singular_ = false;
+    Check(IDAWFtolerances(mem, &IdaIntegrator::EwtCallback), "IDAWFtolerances");
     Check(IDASetLinearSolver(mem, solver_.get(), matrix_.get()), "IDASetLinearSolver");
     Check(IDASetJacFn(mem, &IdaIntegrator::JacobianCallback), "IDASetJacFn");
     Check(IDASetId(mem, id_.get()), "IDASetId");
@@ -390,9 +481,13 @@ class IdaIntegrator final : public Integrator {
       // After a step and after a failure IDA leaves (t_ret, y, y') at the last point
       // reached.
       CopyState(t_ret);
-      if (flag < 0) break;
       const double h = std::abs(summary_.h_last);
-      tiny_steps_ = h < options_.min_relative_step * std::max(1.0, std::abs(t_ret)) ? tiny_steps_ + 1 : 0;
+      tiny_steps_ = flag >= 0 && h < options_.min_relative_step * std::max(1.0, std::abs(t_ret))
+                        ? tiny_steps_ + 1
+                        : 0;
+      if ((flag < 0 || tiny_steps_ >= kTinyStepsToFail) && Restart(t_ret, t_target)) continue;
+      if (flag < 0) break;
+      Remember(t_ret);
       if (tiny_steps_ >= kTinyStepsToFail)
         return Fail("IDA: the step size fell to h = " + ToString(h) + " at t = " + ToString(t_ret) +
                     ", below " + ShortNumber(options_.min_relative_step) + " max(1, |t|) for " +
@@ -419,6 +514,60 @@ class IdaIntegrator final : public Integrator {
     }
     summary_.status = Summary::Status::kRunning;
     summary_.message.clear();
+    return true;
+  }
+
+  // Keeps the last kHistory accepted steps (t, y, y') in a ring (sized at Initialize:
+  // no allocation while stepping), for Restart.
+  void Remember(double t) {
+    if (history_.empty()) return;
+    if (t > restart_clear_) restarts_in_a_row_ = 0;
+    Snapshot& snap = history_[(history_first_ + history_count_) % kHistory];
+    if (history_count_ < kHistory) {
+      ++history_count_;
+    } else {
+      history_first_ = (history_first_ + 1) % kHistory;
+    }
+    const double* y = N_VGetArrayPointer(y_.get());
+    const double* yp = N_VGetArrayPointer(yp_.get());
+    snap.t = t;
+    std::copy(y, y + ggl_.size(), snap.y.begin());
+    std::copy(yp, yp + ggl_.size(), snap.yp.begin());
+  }
+
+  // After a failure (IDA's, or collapsing steps) at t_fail: IDA starts again (IDAReInit,
+  // order 1) from the oldest of the last kHistory accepted steps, so that its steps fall
+  // elsewhere. Near a singular position a run fails when one of its steps lands so close
+  // that the rounding, amplified by the nearly singular matrix, exceeds the tolerances;
+  // another sequence of steps passes. At most IdaOptions::max_restarts in a row (the
+  // count clears once the run is beyond t_fail by the distance it went back); not with
+  // quadratures. Returns false when it does not restart.
+  bool Restart(double t_fail, double t_target) {
+    if (restarts_in_a_row_ >= options_.max_restarts || history_count_ == 0 || quad_spec_.size > 0)
+      return false;
+    const Snapshot& s = history_[history_first_];
+    if (!(s.t < t_fail)) return false;
+    void* mem = mem_.get();
+    std::copy(s.y.begin(), s.y.end(), N_VGetArrayPointer(y_.get()));
+    std::copy(s.yp.begin(), s.yp.end(), N_VGetArrayPointer(yp_.get()));
+    // IDA's counters start again from zero: keep what they counted so far.
+    counted_ = summary_;
+    if (IDAReInit(mem, s.t, y_.get(), yp_.get()) != IDA_SUCCESS) return false;
+    if (IDASetStopTime(mem, t_target) != IDA_SUCCESS) return false;
+    // A first step that differs at every restart of a row (the mean step of the history
+    // times 0.3, 0.5, 0.7), so that the new sequence of steps differs from the failed one.
+    const double h0 = (t_fail - s.t) / static_cast<double>(history_count_) *
+                      (0.3 + 0.2 * restarts_in_a_row_);
+    if (IDASetInitStep(mem, h0) != IDA_SUCCESS) return false;
+    ++restarts_in_a_row_;
+    ++restarts_;
+    restart_clear_ = t_fail + (t_fail - s.t);
+    tiny_steps_ = 0;
+    const double t0 = s.t;
+    history_count_ = 0;
+    CopyState(t0);
+    callback_error_.clear();
+    ida_error_.clear();
     return true;
   }
 
@@ -482,13 +631,14 @@ class IdaIntegrator final : public Integrator {
     IDAGetNumResEvals(mem, &nre);
     IDAGetNumLinResEvals(mem, &nrels);
     IDAGetLastStep(mem, &h);
-    summary_.steps_accepted = steps;
-    summary_.steps_rejected = etf + ncf;
-    summary_.newton_iterations = nni;
-    summary_.jacobian_evaluations = nje;
+    // counted_: what IDA counted before its last restart (Restart).
+    summary_.steps_accepted = counted_.steps_accepted + steps;
+    summary_.steps_rejected = counted_.steps_rejected + etf + ncf;
+    summary_.newton_iterations = counted_.newton_iterations + nni;
+    summary_.jacobian_evaluations = counted_.jacobian_evaluations + nje;
     // Every linear solver setup evaluates the Jacobian and refactors it with KLU.
-    summary_.factorizations = nsetups;
-    summary_.residual_evaluations = nre + nrels;
+    summary_.factorizations = counted_.factorizations + nsetups;
+    summary_.residual_evaluations = counted_.residual_evaluations + nre + nrels;
     summary_.h_last = h;
   }
 
@@ -533,6 +683,7 @@ class IdaIntegrator final : public Integrator {
       assert(SUNSparseMatrix_NNZ(J) >= static_cast<sunindextype>(self->values_.size()));
       std::copy(self->col_start_.begin(), self->col_start_.end(), cols);
       std::copy(self->row_index_.begin(), self->row_index_.end(), rows);
+      self->cj_ = cj;
       const int code =
           self->ggl_.Jacobian(t, cj, N_VGetArrayPointer(y), N_VGetArrayPointer(yp), data);
       if (code != 0) self->NoteSystemError(code, t);
@@ -544,6 +695,97 @@ class IdaIntegrator final : public Integrator {
     }
     return -1;
   }
+
+  // IDA's linear solver: SUNDIALS' KLU (inner_solver_, as IDA used before) with the
+  // rules of internal::GglRounding, behind SUNDIALS' generic interface (a matrix-based,
+  // "direct" solver on the SUNSparseMatrix that JacobianCallback fills).
+  SUNLinearSolver MakeLinearSolver(SUNContext ctx) {
+    inner_solver_.reset(SUNLinSol_KLU(y_.get(), matrix_.get(), ctx));
+    work_b_.reset(N_VNew_Serial(ggl_.size(), ctx));
+    work_x_.reset(N_VNew_Serial(ggl_.size(), ctx));
+    if (!inner_solver_ || !work_b_ || !work_x_) return nullptr;
+    SUNLinearSolver s = SUNLinSolNewEmpty(ctx);
+    if (!s) return nullptr;
+    s->content = this;
+    s->ops->gettype = [](SUNLinearSolver) { return SUNLINEARSOLVER_DIRECT; };
+    s->ops->getid = [](SUNLinearSolver) { return SUNLINEARSOLVER_CUSTOM; };
+    s->ops->initialize = [](SUNLinearSolver ls) {
+      return SUNLinSolInitialize(static_cast<IdaIntegrator*>(ls->content)->inner_solver_.get());
+    };
+    s->ops->setup = &IdaIntegrator::LinearSetupCallback;
+    s->ops->solve = &IdaIntegrator::LinearSolveCallback;
+    s->ops->lastflag = [](SUNLinearSolver ls) -> sunindextype {
+      return SUNLinSolLastFlag(static_cast<IdaIntegrator*>(ls->content)->inner_solver_.get());
+    };
+    s->ops->free = [](SUNLinearSolver ls) {
+      ls->content = nullptr;  // the integrator owns what it points to
+      SUNLinSolFreeEmpty(ls);
+      return 0;
+    };
+    return s;
+  }
+
+  static int LinearSetupCallback(SUNLinearSolver s, SUNMatrix A) {
+    auto* self = static_cast<IdaIntegrator*>(s->content);
+    self->near_singular_ = false;
+    const int flag = SUNLinSolSetup(self->inner_solver_.get(), A);
+    if (flag != SUNLS_SUCCESS) return flag;
+    try {
+      // One captured pointer: fits std::function's local storage (no allocation).
+      self->rounding_->Update(self->cj_, [self](double* x) {
+        const int size = self->ggl_.size();
+        std::copy(x, x + size, N_VGetArrayPointer(self->work_b_.get()));
+        SUNLinSolSolve(self->inner_solver_.get(), self->matrix_.get(), self->work_x_.get(),
+                       self->work_b_.get(), 0.0);
+        const double* xx = N_VGetArrayPointer(self->work_x_.get());
+        std::copy(xx, xx + size, x);
+      });
+      // Near a singular position: the resolution of q or v exceeds kNearSingular times
+      // the tolerances (rtol |y| + atol at the last accepted step). Only there the rules
+      // apply; elsewhere IDA runs as without them.
+      const int nq = self->ggl_.nq();
+      const double* atol = N_VGetArrayPointer(self->atol_.get());
+      const std::vector<double>& r = self->rounding_->resolution();
+      for (int i = 0; i < 2 * nq && !self->near_singular_; ++i) {
+        const double y = i < nq ? self->state_.q[i] : self->state_.v[i - nq];
+        self->near_singular_ = r[i] > kNearSingular * (self->options_.rtol * std::abs(y) + atol[i]);
+      }
+    } catch (...) {
+      self->rounding_->Clear();
+      self->near_singular_ = false;
+    }
+    return SUNLS_SUCCESS;
+  }
+
+  static int LinearSolveCallback(SUNLinearSolver s, SUNMatrix A, N_Vector x, N_Vector b, double tol) {
+    auto* self = static_cast<IdaIntegrator*>(s->content);
+    if (self->near_singular_) {
+      N_VScale(1.0, b, x);
+      if (self->rounding_->ZeroIfRounding(N_VGetArrayPointer(x))) return SUNLS_SUCCESS;
+    }
+    return SUNLinSolSolve(self->inner_solver_.get(), A, x, b, tol);
+  }
+
+  // Error weights (IDAWFtolerances): 1 / (rtol |y_i| + atol_i + r_i), r the resolution
+  // of a Newton solution (GglRounding::resolution) at the last matrix setup: neither
+  // the error test nor the Newton convergence test asks for accuracy below what the
+  // arithmetic resolves (near a singular position, where r grows like 1/s^2).
+  static int EwtCallback(N_Vector y, N_Vector ewt, void* user_data) {
+    auto* self = static_cast<IdaIntegrator*>(user_data);
+    const double* yy = N_VGetArrayPointer(y);
+    double* w = N_VGetArrayPointer(ewt);
+    const double* atol = N_VGetArrayPointer(self->atol_.get());
+    const std::vector<double>& r = self->rounding_->resolution();
+    const int n = self->ggl_.size();
+    for (int i = 0; i < n; ++i) {
+      const double tol = self->options_.rtol * std::abs(yy[i]) + atol[i] +
+                         (self->near_singular_ ? r[i] : 0.0);
+      if (!(tol > 0) || !std::isfinite(tol)) return -1;
+      w[i] = 1.0 / tol;
+    }
+    return 0;
+  }
+
 
   static int QuadratureCallback(double t, N_Vector y, N_Vector yp, N_Vector rhs, void* user_data) {
     auto* self = static_cast<IdaIntegrator*>(user_data);
@@ -585,6 +827,13 @@ class IdaIntegrator final : public Integrator {
 
   IdaOptions options_;
   internal::GglResidual ggl_;
+  // The rounding rules of IDA's linear solver (MakeLinearSolver), applied where the
+  // resolution exceeds kNearSingular times the tolerances (near_singular_, at the last
+  // matrix setup).
+  std::unique_ptr<internal::GglRounding> rounding_;
+  static constexpr double kNearSingular = 10;
+  bool near_singular_ = false;  // at the last matrix setup (LinearSetupCallback)
+  double cj_ = 0;  // of the last Jacobian evaluation
   std::vector<sunindextype> col_start_, row_index_;
   std::vector<double> values_;
   State state_;
@@ -595,13 +844,27 @@ class IdaIntegrator final : public Integrator {
   // Steps in a row below the smallest relative step. A few are normal: IDA's first step
   // can be far smaller (0.5 / ||y'|| in the error weights) and doubles at every step.
   static constexpr int kTinyStepsToFail = 20;
+  // Restart: the accepted steps kept, the restarts since the run last got beyond the
+  // failure (restart_clear_), and the counters of IDA before its last restart.
+  struct Snapshot {
+    double t = 0;
+    std::vector<double> y, yp;
+  };
+  static constexpr size_t kHistory = 10;
+  std::vector<Snapshot> history_;  // a ring: history_first_, history_count_
+  size_t history_first_ = 0, history_count_ = 0;
+  int restarts_in_a_row_ = 0;
+  long restarts_ = 0;  // in the whole run
+  double restart_clear_ = 0;
+  Summary counted_;
   int tiny_steps_ = 0;
   std::string callback_error_, ida_error_;
   // Destroyed in reverse order: IDA memory first, the context last.
   ContextPtr context_;
   VectorPtr y_, yp_, id_, atol_, yq_;
   MatrixPtr matrix_;
-  LinearSolverPtr solver_;
+  LinearSolverPtr inner_solver_, solver_;
+  VectorPtr work_b_, work_x_;
   IdaMemPtr mem_;
 };
 

@@ -2,7 +2,11 @@
 // mechanical system:
 //   q' = v - C_q^T mu,   M v' + C_q^T lambda = Q,   C(q, t) = 0,   C_q v + C_t = 0,
 // with the analytic sparse Jacobian and KLU; lambda and mu are algebraic and left out
-// of the error test. IDA is called one step at a time (IDA_ONE_STEP with the output time
+// of the error test. Near singular positions (C_q losing rank) the Newton iteration
+// stops at the rounding level of the residual and the error weights allow for the
+// resolution of the nearly singular iteration matrix (IdaOptions::roundoff_factor,
+// internal::GglRounding), and a failed run starts again from an earlier step
+// (IdaOptions::max_restarts), so that IDA passes them. IDA is called one step at a time (IDA_ONE_STEP with the output time
 // as stop time): the step observer (Integrator::SetStepObserver) sees every step, and a
 // run ends with a message naming t and h when it exceeds its step budget or its steps
 // collapse (IdaOptions::max_steps, min_relative_step).
@@ -40,6 +44,21 @@ struct IdaOptions {
   // of t). 20, because IDA's first step may be that small and doubles from there. 0: no
   // such rule.
   double min_relative_step = 1e-14;
+  // Two rules for singular positions, with this factor (internal::GglRounding), that
+  // apply where the resolution r of the Newton solution (the response of the matrix of
+  // the last setup to residuals at roundoff_factor times their rounding level) exceeds
+  // 10 times rtol |y| + atol for some q or v: a Newton iterate whose residual is, in
+  // every row, within roundoff_factor times its rounding level gets a zero correction
+  // (converged: near a singular position the correction computed from such a residual
+  // is rounding error amplified by the nearly singular iteration matrix); and the error
+  // weights are 1 / (rtol |y| + atol + r), so that neither the error test nor the
+  // convergence test asks for accuracy below r. 0: neither rule.
+  double roundoff_factor = 8;
+  // A run that fails (IDA's error, or min_relative_step) starts again from the oldest of
+  // its last 10 accepted steps (IDAReInit: order 1, a new sequence of steps), at most
+  // this many times in a row; the step observer then sees steps again from that earlier
+  // time. Not with quadratures. 0: no restarts.
+  int max_restarts = 3;
 
   bool IsValid(std::string* error) const;
 };

@@ -41,6 +41,7 @@ ITEMS = [
     ("Hard cases", "long_run", "verification/long_run/run.py", []),
     ("Hard cases", "stiff_spring", "verification/stiff_spring/run.py", []),
     ("Hard cases", "redundant", "verification/redundant/run.py", []),
+    ("Hard cases", "singular", "verification/singular/run.py", []),
     ("Hard cases", "discontinuous", "verification/discontinuous/run.py", []),
     ("Convergence orders", "orders", "verification/orders/run.py", []),
     ("Elements", "free_body", "verification/free_body/run.py", []),
