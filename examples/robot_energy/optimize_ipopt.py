@@ -19,8 +19,8 @@ script therefore
    which, were the torques continuous functions, would keep the last motion exactly
    (gravity enters the equations linearly); a failed stage halves the step;
 3. tries to minimise the mechanical energy drawn (objective `energy_reg` = energy + 0.01
-   losses) from the loss optimum, 100 Ipopt iterations at most (not converged yet:
-   README.md);
+   losses) from the loss optimum by single shooting, 100 Ipopt iterations at most (it
+   does not converge: README.md; energy_ipopt.py solves that problem);
 4. sweeps the duration T: at each T steps 1 and 2 again, and the quintic motion's costs
    (`mbdae simulate quintic.yaml --set T=...`).
 
@@ -281,12 +281,12 @@ def main():
                                               "energy_saving", "to_loss_optimum", "totals")}, indent=1, default=str))
 
 
-def plot(series, sweep, out):
+def plot_histories(series, styles, out, files, title):
+    """Torques and angles against time, one panel per joint: files = (torques, angles)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    styles = {"losses_optimum": ("loss-optimal", "C0", "-"), "quintic": ("quintic", "C1", "--")}
-    for what, fname, unit in (("tau", "torques.png", "torque (N m)"), ("q", "angles.png", "angle (rad)")):
+    for what, fname, unit in (("tau", files[0], "torque (N m)"), ("q", files[1], "angle (rad)")):
         fig, axes = plt.subplots(3, 1, figsize=(7, 7.5), sharex=True)
         for k, ax in enumerate(axes, 1):
             for key, (label, color, ls) in styles.items():
@@ -296,10 +296,18 @@ def plot(series, sweep, out):
             ax.grid(alpha=0.3)
         axes[0].legend()
         axes[-1].set_xlabel("t (s)")
-        axes[0].set_title("robot arm, rest to rest in T = 1 s, g = 9.81 m/s^2")
+        axes[0].set_title(title)
         fig.tight_layout()
         fig.savefig(os.path.join(out, fname), dpi=110)
         plt.close(fig)
+
+
+def plot(series, sweep, out):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    plot_histories(series, {"losses_optimum": ("loss-optimal", "C0", "-"), "quintic": ("quintic", "C1", "--")}, out,
+                   ("torques.png", "angles.png"), "robot arm, rest to rest in T = 1 s, g = 9.81 m/s^2")
     Ts = sorted(T for T in sweep if "losses" in sweep[T])
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
     axes[0].plot(Ts, [sweep[T]["losses"] for T in Ts], "o-", label="loss-optimal")
