@@ -121,7 +121,8 @@ const char* kHelp =
     "\n"
     "The results file is written as RESULTS.PID.tmp beside it and renamed when the run\n"
     "ends; an earlier file of that name stays whole until then. SIGTERM or SIGINT stops\n"
-    "the run after the current step (status 'interrupted', the rows kept).\n"
+    "the run after the current step (status 'interrupted', the rows kept); gradient and\n"
+    "optimize instead remove the temporary file and end at once (no file written).\n"
     "\n"
     "exit codes: 0 done; 2 bad input (nothing written); 3 the solver failed (the rows up\n"
     "to the failure are kept, status 'failed'); 130 / 143 (128 + signal) simulate stopped\n"
@@ -142,6 +143,30 @@ void CatchStopSignals() {
   action.sa_handler = OnStopSignal;
   sigemptyset(&action.sa_mask);
   action.sa_flags = SA_RESETHAND;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+// gradient and optimize: a SIGINT or SIGTERM removes the temporary results file (the
+// earlier results file stays as it was) and ends the process by the signal's default
+// action. unlink and raise are async-signal-safe; the name is set once the file exists.
+const char* volatile temporary_to_remove = nullptr;
+
+extern "C" void OnSignalRemoveTemporary(int signal_number) {
+  if (const char* name = temporary_to_remove) unlink(name);
+  raise(signal_number);  // delivered on return: SA_RESETHAND restored the default action
+}
+
+void RemoveTemporaryOnSignal(const ResultsDestination& destination) {
+  struct sigaction action {};
+  action.sa_handler = OnSignalRemoveTemporary;
+  sigemptyset(&action.sa_mask);
+  sigaddset(&action.sa_mask, SIGINT);
+  sigaddset(&action.sa_mask, SIGTERM);
+  action.sa_flags = SA_RESETHAND;
+  static std::string name;  // outlives the destination
+  name = destination.temporary();
+  temporary_to_remove = name.c_str();
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
 }
@@ -264,8 +289,12 @@ int RunSimulate(const CommandLine& cl) {
 }
 
 int RunGradient(const CommandLine& cl) {
-  if (!cl.output_path.empty() && SameFile(cl.output_path, cl.model_path))
-    throw UsageError("the results file '" + cl.output_path + "' is the model file itself: give another name with -o");
+  // As simulate: the results file can be written and is not the model, before loading.
+  std::optional<ResultsDestination> destination;
+  if (!cl.output_path.empty()) {
+    RequireReadable(cl.model_path);
+    destination.emplace(cl.output_path, cl.model_path);
+  }
   mbs::Model model = Load(cl);
   mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
   driver::GradientRequest request;
@@ -278,7 +307,6 @@ int RunGradient(const CommandLine& cl) {
   if (cl.trajectory_memory_mib) request.trajectory_memory = *cl.trajectory_memory_mib * 1024.0 * 1024.0;
   driver::GradientOptions go;
   go.model_path = cl.model_path;
-  go.results_path = cl.output_path;
   go.reload = [&cl](const std::map<std::string, double>& values) {
     mbs::LoadOptions lo;
     lo.parameter_overrides = cl.parameter_overrides;
@@ -289,8 +317,18 @@ int RunGradient(const CommandLine& cl) {
                             : isatty(STDERR_FILENO) ? ProgressReporter::Mode::kBar
                                                     : ProgressReporter::Mode::kLines);
   go.progress = [&progress](double t, double t_end) { progress.Update(t, t_end); };
-  const driver::GradientResult r = driver::ComputeGradient(model, settings, request, go);
+  if (destination) {
+    // The temporary file is created only once the input checked out (ComputeGradient's
+    // InputErrors come before it writes), and renamed when everything is in it.
+    go.results_path = destination->CreateTemporary();
+    RemoveTemporaryOnSignal(*destination);
+  }
+  driver::GradientResult r = driver::ComputeGradient(model, settings, request, go);
   progress.Finish();
+  if (destination) {
+    destination->Commit();
+    r.forward.results_path = destination->path();
+  }
   if (cl.json)
     std::cout << r.Json() << "\n" << std::flush;
   else if (!cl.quiet && r.status == driver::GradientResult::Status::kDone)
@@ -306,10 +344,16 @@ int RunGradient(const CommandLine& cl) {
 int RunOptimize(const CommandLine& cl) {
   // Every mistake of the problem file (and of its model) before anything runs.
   const driver::OptimizationProblem problem = driver::LoadOptimizationProblem(cl.model_path);
+  // The results file can be written and is neither the problem file nor its model.
+  ResultsDestination destination(cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path,
+                                 cl.model_path);
+  if (SameFile(destination.path(), problem.model_path))
+    throw UsageError("the results file '" + destination.path() + "' is the model file '" + problem.model_path +
+                     "' of the problem: give another name with -o");
   driver::OptimizeOptions oo;
-  oo.results_path = cl.output_path.empty() ? DefaultResultsPath(cl.model_path) : cl.output_path;
-  if (SameFile(oo.results_path, cl.model_path))
-    throw UsageError("the results file '" + oo.results_path + "' is the problem file itself: give another name with -o");
+  // The final run and then /optimization go to the temporary file, renamed at the end.
+  oo.results_path = destination.CreateTemporary();
+  RemoveTemporaryOnSignal(destination);
   if (!cl.quiet)
     oo.iteration = [](const driver::OptimizationIteration& it) {
       if (it.iteration % 20 == 0)
@@ -319,7 +363,13 @@ int RunOptimize(const CommandLine& cl) {
                    it.constraint_violation, it.dual_infeasibility, it.step, it.gradient_evaluations);
       std::fflush(stderr);
     };
-  const driver::OptimizationResult r = driver::Optimize(problem, oo);
+  driver::OptimizationResult r = driver::Optimize(problem, oo);
+  // A final run that could not start wrote nothing: the temporary file is removed (by
+  // the destructor) and an earlier results file stays.
+  if (!r.final_run.results_path.empty()) {
+    destination.Commit();
+    r.final_run.results_path = destination.path();
+  }
   if (cl.json)
     std::cout << r.Json() << "\n" << std::flush;
   else if (!cl.quiet)
@@ -328,7 +378,7 @@ int RunOptimize(const CommandLine& cl) {
     PrintError("not solved (Ipopt: " + r.ipopt_status + ")" +
                (r.failure_reason.empty() ? std::string() : ": " + r.failure_reason) +
                (r.final_run.results_path.empty() ? std::string()
-                                                 : "; the final point and the history are in " + oo.results_path));
+                                                 : "; the final point and the history are in " + destination.path()));
     return 3;
   }
   return 0;

@@ -7,7 +7,10 @@ Run by CTest (app.gradient_cli) with MBDAE_BIN and MBDAE_APP_MODELS set.
 """
 import json
 import os
+import shutil
+import signal
 import subprocess
+import time
 
 import h5py
 import numpy as np
@@ -163,6 +166,7 @@ def test_failed_run_exits_3_without_a_gradient(tmp_path, method):
     with h5py.File(path, "r") as f:
         assert f.attrs["status"] == "failed"
         assert "objectives" not in f
+    assert tmp_files(tmp_path) == []
 
 
 def test_objective_over_an_unknown_measure_exits_2_naming_it(tmp_path):
@@ -174,3 +178,70 @@ def test_objective_over_an_unknown_measure_exits_2_naming_it(tmp_path):
     assert p.returncode == 2
     assert "objective 'R'" in p.stderr and "'nosuch'" in p.stderr and "unknown_measure.yaml:" in p.stderr
     assert not out.exists()
+
+
+# ---- the results file (-o): written beside it, renamed at the end (docs/cli.md) ----------
+
+def tmp_files(folder):
+    return sorted(p.name for p in folder.glob("*.tmp"))
+
+
+def run_in(folder, *args):
+    return subprocess.run([MBDAE, "gradient", *args], cwd=folder, capture_output=True, text=True, timeout=120)
+
+
+def test_an_earlier_results_file_is_replaced_at_the_end(tmp_path):
+    out = tmp_path / "g.h5"
+    out.write_bytes(b"earlier results")
+    run("--wrt", "k", "--quiet", "-o", str(out))
+    with h5py.File(out, "r") as f:
+        assert f.attrs["status"] == "done" and f.attrs["gradient_status"] == "done"
+    assert tmp_files(tmp_path) == []
+
+
+def test_results_file_is_never_the_model(tmp_path):
+    shutil.copy(MODEL, tmp_path / "m.yaml")
+    os.symlink("m.yaml", tmp_path / "link.yaml")
+    original = (tmp_path / "m.yaml").read_bytes()
+    for out in ["m.yaml", "./m.yaml", "link.yaml", str(tmp_path / "m.yaml")]:
+        p = run_in(tmp_path, "m.yaml", "--wrt", "k", "-o", out)
+        assert p.returncode == 2, (out, p.stderr)
+        assert "is the input file" in p.stderr, p.stderr
+        assert (tmp_path / "m.yaml").read_bytes() == original
+    assert not list(tmp_path.glob("*.h5")) and tmp_files(tmp_path) == []
+
+
+@pytest.mark.parametrize("out,reason", [
+    ("missing_dir/g.h5", "No such file or directory"),
+    ("adir", "Is a directory"),
+])
+def test_unwritable_results_file_says_why(tmp_path, out, reason):
+    (tmp_path / "adir").mkdir()
+    p = run_in(tmp_path, MODEL, "--wrt", "k", "-o", out)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.strip() == "mbdae: error: cannot write the results file '%s': %s" % (out, reason)
+    assert tmp_files(tmp_path) == [] and not list(tmp_path.glob("*.h5"))
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signal_removes_the_temporary_file_and_keeps_the_earlier_one(tmp_path, signum):
+    out = tmp_path / "g.h5"
+    out.write_bytes(b"earlier results")
+    # A forward run of 1e4 s (1e7 steps): still going when the signal comes.
+    proc = subprocess.Popen([MBDAE, "gradient", MODEL, "--wrt", "k", "--t-end", "1e4", "--quiet",
+                             "-o", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for _ in range(600):
+        if tmp_files(tmp_path) or proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    assert proc.poll() is None, proc.communicate()
+    assert tmp_files(tmp_path) == ["g.h5.%d.tmp" % proc.pid]
+    # While the run goes on, the earlier file is as it was.
+    time.sleep(0.5)
+    assert out.read_bytes() == b"earlier results"
+    proc.send_signal(signum)
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signum  # ended by the signal
+    assert out.read_bytes() == b"earlier results"
+    assert tmp_files(tmp_path) == []

@@ -8,7 +8,9 @@ Run by CTest (optimize.cli) with MBDAE_BIN and MBDAE_OPTIMIZE_DIR set.
 import json
 import os
 import shutil
+import signal
 import subprocess
+import time
 
 import h5py
 import numpy as np
@@ -152,6 +154,7 @@ def test_no_convergence_exits_3_with_history_and_point(tmp_path):
         assert g["history"].shape == (3, 5)
         assert np.array_equal(g["variables"][:], [d["variables"][f"tau[{i}]"] for i in range(21)])
         assert g.attrs["objective"] == pytest.approx(d["objective"], rel=1e-15)
+    assert tmp_files(tmp_path) == []
 
 
 # ---- multiple shooting (`shooting:`) ---------------------------------------------------
@@ -256,3 +259,74 @@ def test_bad_shooting_exits_2_naming_file_and_line(tmp_path, change, line, needl
     p = optimize(problem, "--json", "-o", str(out), expect=2)
     assert f"{problem}:{line}:" in p.stderr and needle in p.stderr, p.stderr
     assert p.stdout == "" and not out.exists()
+
+
+# ---- the results file: written beside it, renamed at the end (docs/cli.md) -------------
+
+def tmp_files(folder):
+    return sorted(p.name for p in folder.glob("*.tmp"))
+
+
+def test_an_earlier_results_file_is_replaced_at_the_end(tmp_path):
+    problem = copy_problem(tmp_path)
+    out = tmp_path / "out.h5"
+    out.write_bytes(b"earlier results")
+    optimize(problem, "--quiet", "-o", str(out))
+    with h5py.File(out, "r") as f:
+        assert f.attrs["optimization_status"] == "solved" and "optimization/history" in f
+    assert tmp_files(tmp_path) == []
+
+
+def test_results_file_is_never_the_problem_or_its_model(tmp_path):
+    copy_problem(tmp_path)
+    os.symlink("problem.yaml", tmp_path / "plink.yaml")
+    os.symlink("rotor.yaml", tmp_path / "mlink.yaml")
+    originals = {n: (tmp_path / n).read_bytes() for n in ["problem.yaml", "rotor.yaml"]}
+    for out, needle in [("problem.yaml", "is the input file"), ("./problem.yaml", "is the input file"),
+                        ("plink.yaml", "is the input file"), ("rotor.yaml", "is the model file"),
+                        ("./rotor.yaml", "is the model file"), ("mlink.yaml", "is the model file"),
+                        (str(tmp_path / "rotor.yaml"), "is the model file")]:
+        p = subprocess.run([MBDAE, "optimize", "problem.yaml", "-o", out, "--quiet"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=120)
+        assert p.returncode == 2, (out, p.stderr)
+        assert needle in p.stderr, p.stderr
+        for n, text in originals.items():
+            assert (tmp_path / n).read_bytes() == text
+    assert not list(tmp_path.glob("*.h5")) and tmp_files(tmp_path) == []
+
+
+def test_unwritable_results_file_says_why(tmp_path):
+    copy_problem(tmp_path)
+    p = subprocess.run([MBDAE, "optimize", "problem.yaml", "-o", "missing_dir/out.h5", "--quiet"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.strip() == ("mbdae: error: cannot write the results file 'missing_dir/out.h5': "
+                                "No such file or directory")
+    assert tmp_files(tmp_path) == [] and not list(tmp_path.glob("*.h5"))
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_signal_removes_the_temporary_file_and_keeps_the_earlier_one(tmp_path, signum):
+    problem = copy_problem(tmp_path)
+    # HHT step 1e-5 (1e5 steps a run) and no iteration limit: still going when the signal comes.
+    rotor = tmp_path / "rotor.yaml"
+    rotor.write_text(rotor.read_text().replace("hht: {step: 1.0e-3}", "hht: {step: 1.0e-5}"))
+    problem.write_text(problem.read_text().replace("max_iter: 100", "max_iter: 100000"))
+    out = tmp_path / "out.h5"
+    out.write_bytes(b"earlier results")
+    proc = subprocess.Popen([MBDAE, "optimize", str(problem), "--quiet", "-o", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    for _ in range(600):
+        if tmp_files(tmp_path) or proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    assert proc.poll() is None, proc.communicate()
+    assert tmp_files(tmp_path) == ["out.h5.%d.tmp" % proc.pid]
+    # While the optimisation goes on, the earlier file is as it was.
+    time.sleep(0.5)
+    assert out.read_bytes() == b"earlier results"
+    proc.send_signal(signum)
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signum  # ended by the signal
+    assert out.read_bytes() == b"earlier results"
+    assert tmp_files(tmp_path) == []
