@@ -443,7 +443,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, ida.rtol, ida.atol, gradient.fd_step, gradient.newton_factor, "
+    "hht.modified, hht.form, ida.rtol, ida.atol, ida.max_steps, ida.min_step, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 }  // namespace
@@ -508,6 +508,14 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.ida_rtol = ParseOptionNumber(key, value);
   } else if (key == "ida.atol") {
     o.ida_atol = ParseOptionNumber(key, value);
+  } else if (key == "ida.max_steps") {
+    const double x = ParseOptionNumber(key, value);
+    if (!(x >= 1 && x == std::floor(x) && x <= 9e18))
+      throw ApiError(MBDAE_ERROR_INPUT, "option ida.max_steps: expected a whole number >= 1, got '" +
+                                            std::string(value) + "'");
+    o.ida_max_steps = static_cast<long>(x);
+  } else if (key == "ida.min_step") {
+    o.ida_min_step = ParseOptionNumber(key, value);
   } else {
     UnknownOption(key);
   }
@@ -536,6 +544,8 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.form") return s.hht_form;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);
+  if (key == "ida.max_steps") return std::to_string(s.ida_max_steps);
+  if (key == "ida.min_step") return Num(s.ida_min_step);
   std::string gradient_value;
   if (GetGradientOption(m, key, &gradient_value)) return gradient_value;
   UnknownOption(key);

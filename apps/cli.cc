@@ -111,6 +111,19 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     auto no_value = [&]() {
       if (inline_value) throw UsageError(arg + ": takes no value");
     };
+    // One of `allowed`, else "ARG: expected A, B or C, got 'V'".
+    auto choice = [&](std::initializer_list<const char*> allowed) {
+      const std::string v = value();
+      std::string list;
+      size_t k = 0;
+      for (const char* a : allowed) {
+        if (v == a) return v;
+        if (k > 0) list += k + 1 == allowed.size() ? " or " : ", ";
+        list += a;
+        ++k;
+      }
+      throw UsageError(arg + ": expected " + list + ", got '" + v + "'");
+    };
     auto only_simulate = [&]() {
       if (!sim) throw UsageError("option " + arg + " is only for `simulate` and `gradient`", true);
     };
@@ -160,15 +173,10 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       if (cl.output_path.empty()) throw UsageError(arg + ": empty file name");
     } else if (arg == "--integrator") {
       only_simulate();
-      const std::string v = value();
-      if (v == "hht")
-        cl.overrides.integrator = mbs::IntegratorKind::kHht;
-      else if (v == "ida")
-        cl.overrides.integrator = mbs::IntegratorKind::kIda;
-      else if (v == "kinematic")
-        cl.overrides.integrator = mbs::IntegratorKind::kKinematic;
-      else
-        throw UsageError("--integrator: expected hht, ida or kinematic, got '" + v + "'");
+      const std::string v = choice({"hht", "ida", "kinematic"});
+      cl.overrides.integrator = v == "hht"   ? mbs::IntegratorKind::kHht
+                                : v == "ida" ? mbs::IntegratorKind::kIda
+                                             : mbs::IntegratorKind::kKinematic;
     } else if (arg == "--t-end") {
       only_simulate();
       cl.overrides.t_end = number();
@@ -202,10 +210,13 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       cl.overrides.hht_modified = false;
     } else if (arg == "--hht-form") {
       only_simulate();
-      const std::string v = value();
-      if (v != "equilibrium" && v != "negrut")
-        throw UsageError("--hht-form: expected equilibrium or negrut, got '" + v + "'");
-      cl.overrides.hht_form = v;
+      cl.overrides.hht_form = choice({"equilibrium", "negrut"});
+    } else if (arg == "--hht-start") {
+      only_simulate();
+      cl.overrides.hht_start = choice({"consistent", "perturbed"});
+    } else if (arg == "--output-accelerations") {
+      only_simulate();
+      cl.overrides.output_accelerations = choice({"solved", "integrator"});
     } else if (arg == "--rtol") {
       only_simulate();
       cl.overrides.ida_rtol = number();
@@ -224,10 +235,7 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       cl.wrt_splines = true;
     } else if (arg == "--method") {
       only_gradient();
-      const std::string v = value();
-      if (v != "adjoint" && v != "forward" && v != "fd")
-        throw UsageError("--method: expected adjoint, forward or fd, got '" + v + "'");
-      cl.method = v;
+      cl.method = choice({"adjoint", "forward", "fd"});
     } else if (arg == "--fd-step") {
       only_gradient();
       cl.fd_step = number();

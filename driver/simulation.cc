@@ -61,6 +61,8 @@ dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& s) {
   dae::IdaOptions o;
   o.rtol = s.ida_rtol;
   o.atol = s.ida_atol;
+  o.max_steps = s.ida_max_steps;
+  o.min_step = s.ida_min_step;
   return o;
 }
 
@@ -138,6 +140,8 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.output_accelerations) s.output_accelerations = *o.output_accelerations;
   if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
+  if (o.ida_max_steps) s.ida_max_steps = *o.ida_max_steps;
+  if (o.ida_min_step) s.ida_min_step = *o.ida_min_step;
   if (!(s.t_end > 0) || !std::isfinite(s.t_end))
     throw InputError("simulation setting t_end must be > 0, got " + Num(s.t_end));
   if (!(s.output_step > 0) || !std::isfinite(s.output_step))
@@ -147,6 +151,8 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (s.output_accelerations != "solved" && s.output_accelerations != "integrator")
     throw InputError("simulation setting output_accelerations must be solved or integrator, got '" +
                      s.output_accelerations + "'");
+  if (s.ida_max_steps < 1)
+    throw InputError("ida settings: max_steps must be a whole number >= 1, got " + std::to_string(s.ida_max_steps));
   std::string error;
   // Both integrators' settings are checked, the unused one too: a bad value given on
   // the command line is a mistake whichever integrator runs.
@@ -496,6 +502,8 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
   } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
+    file.SetAttribute("ida_max_steps", settings.ida_max_steps);
+    file.SetAttribute("ida_min_step", settings.ida_min_step);
   } else {
     const dae::KinematicOptions kinematic;
     file.SetAttribute("kinematic_tolerance", kinematic.tolerance);

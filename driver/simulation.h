@@ -49,6 +49,8 @@ struct SettingsOverrides {
   std::optional<std::string> hht_start;             // "perturbed" | "consistent"
   std::optional<std::string> output_accelerations;  // "solved" | "integrator"
   std::optional<double> ida_rtol, ida_atol;
+  std::optional<long> ida_max_steps;
+  std::optional<double> ida_min_step;
 };
 
 // The model's settings with the overrides applied, validated (t_end > 0, 0 < output_step,

@@ -1352,9 +1352,17 @@ class Loader {
       }
     }
     if (const YAML::Node i = node["ida"]) {
-      CheckKeys(i, element, {"rtol", "atol"}, "ida");
+      CheckKeys(i, element, {"rtol", "atol", "max_steps", "min_step"}, "ida");
       if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
       if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
+      if (const YAML::Node n = i["max_steps"]) {
+        const double x = LoadTimeNumber(n, element, "ida max_steps");
+        if (!(x >= 1 && x == std::floor(x) && x <= 9e18)) {
+          Fail(n, element, "ida max_steps must be a whole number >= 1, got " + Num(x));
+        }
+        s.ida_max_steps = static_cast<long>(x);
+      }
+      if (const YAML::Node n = i["min_step"]) s.ida_min_step = positive(n, "ida min_step");
     }
     // Settings that are each > 0 but cannot be used together or by the integrator.
     const double rows = s.t_end / s.output_step;

@@ -228,6 +228,11 @@ struct SimulationSettings {
   std::string hht_start = "consistent";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
+  // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its
+  // smallest step (IdaOptions::min_step; 0: no limit). The file's `ida: {max_steps,
+  // min_step}` take a positive integer and a positive number.
+  long ida_max_steps = 100000000;
+  double ida_min_step = 0;
   // a and lambda of the output rows: "solved" (the acceleration-level equations
   // [M C_q^T; C_q 0] [a; lambda] = [Q; gamma] at the row's (t, q, v)) or "integrator"
   // (the integrator's own values); docs/model-format.md, "Simulation".

@@ -296,7 +296,10 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
     << ", modified: " << (sim.hht_modified ? "true" : "false") << ", form: " << sim.hht_form
     << ", start: " << sim.hht_start << "}\n";
-  s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol) << "}\n";
+  s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol);
+  if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;
+  if (sim.ida_min_step > 0) s << ", min_step: " << Num(sim.ida_min_step);
+  s << "}\n";
   return s.str();
 }
 

@@ -298,6 +298,24 @@ TEST(ApiErrors, BadOptionValuesAreInputErrorsAndChangeNothing) {
   ASSERT_MBDAE_OK(mbdae_set_option(m, "ida.rtol", "1e-6"));
   ASSERT_MBDAE_OK(mbdae_get_option(m, "ida.rtol", buf, sizeof buf));
   EXPECT_EQ(std::atof(buf), 1e-6);
+  // IDA's step budget and smallest step (the file's ida: {max_steps, min_step}).
+  auto option = [&](const char* key) {
+    EXPECT_EQ(mbdae_get_option(m, key, buf, sizeof buf), MBDAE_OK) << key;
+    return std::string(buf);
+  };
+  EXPECT_EQ(option("ida.max_steps"), "100000000");
+  EXPECT_EQ(option("ida.min_step"), "0");
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "ida.max_steps", "5000"));
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "ida.min_step", "1e-12"));
+  EXPECT_EQ(option("ida.max_steps"), "5000");
+  EXPECT_EQ(std::atof(option("ida.min_step").c_str()), 1e-12);
+  const std::pair<const char*, const char*> bad[] = {{"ida.max_steps", "0"}, {"ida.max_steps", "2.5"},
+                                                      {"ida.min_step", "-1"}};
+  for (const auto& [key, value] : bad) {
+    EXPECT_EQ(mbdae_set_option(m, key, value), MBDAE_ERROR_INPUT) << key << " = " << value;
+    EXPECT_NE(std::string(mbdae_last_error()).find(key), std::string::npos) << mbdae_last_error();
+  }
+  EXPECT_EQ(option("ida.max_steps"), "5000");  // the old value stays
 }
 
 TEST(ApiErrors, SolverFailureKeepsTheRowsSoFar) {

@@ -10,6 +10,7 @@
 
 #include "apps/cli.h"
 #include "driver/simulation.h"
+#include "mbs/loader.h"
 
 namespace mbdae {
 namespace {
@@ -23,8 +24,8 @@ TEST(CommandLine, SimulateWithEveryOption) {
   CommandLine cl = ParseCommandLine(
       {"simulate", "--t-end", "2.5", "m.yaml", "-o", "out.h5", "--integrator=ida", "--output-step",
        "1e-3", "--step", "1e-4", "--alpha", "-0.2", "--adaptive", "--tolerance", "1e-7",
-       "--no-modified", "--hht-form", "negrut", "--rtol", "1e-6", "--atol", "1e-9", "--set", "k=3", "l0=0.5", "--set",
-       "m=-2e-1", "--quiet"});
+       "--no-modified", "--hht-form", "negrut", "--rtol", "1e-6", "--atol", "1e-9", "--hht-start", "perturbed",
+       "--output-accelerations=integrator", "--set", "k=3", "l0=0.5", "--set", "m=-2e-1", "--quiet"});
   EXPECT_EQ(cl.command, Command::kSimulate);
   EXPECT_EQ(cl.model_path, "m.yaml");
   EXPECT_EQ(cl.output_path, "out.h5");
@@ -39,6 +40,8 @@ TEST(CommandLine, SimulateWithEveryOption) {
   EXPECT_EQ(*cl.overrides.hht_form, "negrut");
   EXPECT_EQ(*cl.overrides.ida_rtol, 1e-6);
   EXPECT_EQ(*cl.overrides.ida_atol, 1e-9);
+  EXPECT_EQ(*cl.overrides.hht_start, "perturbed");
+  EXPECT_EQ(*cl.overrides.output_accelerations, "integrator");
   ASSERT_EQ(cl.parameter_overrides.size(), 3u);
   EXPECT_EQ(cl.parameter_overrides.at("k"), 3.0);
   EXPECT_EQ(cl.parameter_overrides.at("l0"), 0.5);
@@ -51,6 +54,8 @@ TEST(CommandLine, DefaultsLeaveTheModelSettings) {
   EXPECT_FALSE(cl.overrides.t_end.has_value());
   EXPECT_FALSE(cl.overrides.integrator.has_value());
   EXPECT_FALSE(cl.overrides.hht_modified.has_value());
+  EXPECT_FALSE(cl.overrides.hht_start.has_value());
+  EXPECT_FALSE(cl.overrides.output_accelerations.has_value());
   EXPECT_TRUE(cl.output_path.empty());
   EXPECT_FALSE(cl.quiet);
   CommandLine info = ParseCommandLine({"info", "m.yaml", "--json"});
@@ -74,6 +79,12 @@ TEST(CommandLine, MistakesAreUsageErrors) {
       {"simulate", "m.yaml", "--step", "nan"},
       {"simulate", "m.yaml", "--integrator", "rk4"},
       {"simulate", "m.yaml", "--hht-form", "newmark"},
+      {"simulate", "m.yaml", "--hht-start", "smooth"},
+      {"simulate", "m.yaml", "--hht-start"},
+      {"simulate", "m.yaml", "--output-accelerations", "exact"},
+      {"simulate", "m.yaml", "--output-accelerations=Solved"},
+      {"check", "m.yaml", "--hht-start", "perturbed"},
+      {"info", "m.yaml", "--output-accelerations", "solved"},
       {"simulate", "m.yaml", "--set", "k"},
       {"simulate", "m.yaml", "--set", "k=x"},
       {"simulate", "m.yaml", "--adaptive=1"},
@@ -92,6 +103,28 @@ TEST(CommandLine, MistakesAreUsageErrors) {
     EXPECT_NE(std::string(e.what()).find("--t-end"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("abc"), std::string::npos) << e.what();
   }
+}
+
+TEST(CommandLine, OutputAccelerationsAndHhtStartNameTheFlagAndTheValues) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> bad = {
+      {{"simulate", "m.yaml", "--hht-start", "smooth"}, "--hht-start: expected consistent or perturbed, got 'smooth'"},
+      {{"gradient", "m.yaml", "--hht-start=x"}, "--hht-start: expected consistent or perturbed, got 'x'"},
+      {{"simulate", "m.yaml", "--output-accelerations", "exact"},
+       "--output-accelerations: expected solved or integrator, got 'exact'"},
+  };
+  for (const auto& [args, message] : bad) {
+    try {
+      ParseCommandLine(args);
+      ADD_FAILURE() << "no error for " << message;
+    } catch (const UsageError& e) {
+      EXPECT_EQ(std::string(e.what()), message);
+    }
+  }
+  // gradient takes every simulate option.
+  const CommandLine g = ParseCommandLine({"gradient", "m.yaml", "--hht-start", "consistent",
+                                          "--output-accelerations", "solved"});
+  EXPECT_EQ(*g.overrides.hht_start, "consistent");
+  EXPECT_EQ(*g.overrides.output_accelerations, "solved");
 }
 
 TEST(CommandLine, DefaultResultsPath) {
@@ -218,6 +251,48 @@ TEST(Driver, ResolveSettingsOverridesAndValidates) {
   bad.integrator = mbs::IntegratorKind::kIda;
   bad.ida_rtol = -1;
   expect_error(bad, "ida");
+  bad = {};
+  bad.ida_max_steps = 0;
+  expect_error(bad, "ida settings: max_steps must be a whole number >= 1, got 0");
+  bad = {};
+  bad.ida_min_step = -1e-9;
+  expect_error(bad, "ida settings: ");
+  driver::SettingsOverrides both;
+  both.hht_start = "perturbed";
+  both.output_accelerations = "integrator";
+  both.ida_max_steps = 77;
+  both.ida_min_step = 1e-11;
+  s = driver::ResolveSettings(model, both);
+  EXPECT_EQ(s.hht_start, "perturbed");
+  EXPECT_EQ(s.output_accelerations, "integrator");
+  EXPECT_EQ(driver::HhtOptionsOf(s).start, dae::HhtOptions::Start::kPerturbed);
+  EXPECT_EQ(driver::IdaOptionsOf(s).max_steps, 77);
+  EXPECT_EQ(driver::IdaOptionsOf(s).min_step, 1e-11);
+}
+
+// simulation: {ida: {max_steps, min_step}} of the model file reach IdaOptions; without
+// them IdaOptions keeps its defaults.
+TEST(Driver, IdaStepSettingsOfTheModelFileReachIdaOptions) {
+  const dae::IdaOptions defaults;
+  mbs::Model m = mbs::LoadModelFromString("format: 1\nsimulation: {integrator: ida}\n", "m.yaml");
+  dae::IdaOptions o = driver::IdaOptionsOf(driver::ResolveSettings(m.simulation, {}));
+  EXPECT_EQ(o.max_steps, defaults.max_steps);
+  EXPECT_EQ(o.min_step, defaults.min_step);
+  EXPECT_EQ(o.min_relative_step, defaults.min_relative_step);
+  m = mbs::LoadModelFromString(
+      "format: 1\nsimulation: {integrator: ida, ida: {rtol: 1e-7, max_steps: 5000, min_step: 1e-10}}\n", "m.yaml");
+  o = driver::IdaOptionsOf(driver::ResolveSettings(m.simulation, {}));
+  EXPECT_EQ(o.rtol, 1e-7);
+  EXPECT_EQ(o.max_steps, 5000);
+  EXPECT_EQ(o.min_step, 1e-10);
+  std::string error;
+  EXPECT_TRUE(o.IsValid(&error)) << error;
+  // The command line and the API override them through SettingsOverrides.
+  driver::SettingsOverrides over;
+  over.ida_max_steps = 10;
+  o = driver::IdaOptionsOf(driver::ResolveSettings(m.simulation, over));
+  EXPECT_EQ(o.max_steps, 10);
+  EXPECT_EQ(o.min_step, 1e-10);
 }
 
 }  // namespace

@@ -92,6 +92,7 @@ def test_attributes(pendulum):
     assert as_str(a["model"]) == "pendulum.yaml"
     assert as_str(a["integrator"]) == "ida"
     assert a["ida_rtol"] == 1e-8 and a["ida_atol"] == 1e-10
+    assert a["ida_max_steps"] == 100000000 and a["ida_min_step"] == 0  # the defaults
     assert as_str(a["status"]) == "done"
     assert a["t_reached"] == 1.0
     assert "failure_reason" not in a
@@ -195,6 +196,56 @@ def test_solver_failure_keeps_the_file(tmp_path):
         assert f.attrs["t_reached"] < 0.5
         assert len(as_str(f.attrs["failure_reason"])) > 0
         assert f["time"].shape[0] >= 1 and f["time"][0] == 0.0
+
+
+@pytest.mark.parametrize("flags,attrs", [
+    ([], {"output_accelerations": "solved", "hht_start": "consistent"}),
+    (["--output-accelerations", "integrator"], {"output_accelerations": "integrator"}),
+    (["--output-accelerations=solved"], {"output_accelerations": "solved"}),
+    (["--hht-start", "perturbed"], {"hht_start": "perturbed"}),
+    (["--hht-start", "consistent", "--output-accelerations", "integrator"],
+     {"hht_start": "consistent", "output_accelerations": "integrator"}),
+], ids=["defaults", "accelerations-integrator", "accelerations-solved", "start-perturbed",
+        "both"])
+def test_output_accelerations_and_hht_start_flags(tmp_path, flags, attrs):
+    # The flags override the model's simulation.output_accelerations and simulation.hht.start;
+    # the results file's attributes give the values used.
+    model = copy_model("pendulum.yaml", tmp_path)
+    p = run(["simulate", model, "--t-end", "0.05", "--quiet"] + flags, tmp_path)
+    assert p.returncode == 0, p.stderr
+    with h5py.File(tmp_path / "pendulum.h5", "r") as f:
+        assert as_str(f.attrs["integrator"]) == "hht"
+        for key, value in attrs.items():
+            assert as_str(f.attrs[key]) == value, key
+    # The model's own value is overridden: the file says `integrator`, the flag `solved`.
+    text = (tmp_path / model).read_text().replace(
+        "hht: {alpha: -0.1, step: 1.0e-3}",
+        "hht: {alpha: -0.1, step: 1.0e-3, start: perturbed}\n  output_accelerations: integrator")
+    (tmp_path / "own.yaml").write_text(text)
+    p = run(["simulate", "own.yaml", "--t-end", "0.05", "--quiet"] + flags, tmp_path)
+    assert p.returncode == 0, p.stderr
+    with h5py.File(tmp_path / "own.h5", "r") as f:
+        expected = {"output_accelerations": "integrator", "hht_start": "perturbed"}
+        expected.update(attrs if flags else {})
+        for key, value in expected.items():
+            assert as_str(f.attrs[key]) == value, key
+
+
+@pytest.mark.parametrize("flag,value,allowed", [
+    ("--output-accelerations", "exact", "expected solved or integrator, got 'exact'"),
+    ("--hht-start", "smooth", "expected consistent or perturbed, got 'smooth'"),
+])
+def test_output_accelerations_and_hht_start_bad_values_exit_2(tmp_path, flag, value, allowed):
+    model = copy_model("pendulum.yaml", tmp_path)
+    for args in ([flag, value], [flag + "=" + value]):
+        p = run(["simulate", model, "--quiet"] + args, tmp_path)
+        assert p.returncode == 2, p.stderr
+        assert p.stderr.startswith("mbdae: error: " + flag + ": " + allowed), p.stderr
+    p = run(["simulate", model, "--quiet", flag], tmp_path)  # the value is missing
+    assert p.returncode == 2 and flag + ": missing value" in p.stderr, p.stderr
+    p = run(["check", model, flag, value], tmp_path)  # only for simulate and gradient
+    assert p.returncode == 2 and "option " + flag + " is only for" in p.stderr, p.stderr
+    assert not list(tmp_path.glob("*.h5"))
 
 
 def test_info_json_counts(tmp_path):

@@ -73,6 +73,70 @@ def test_runaway_ida_run_ends_with_exit_3_and_keeps_the_rows(tmp_path, name, t_s
     assert leftovers(tmp_path) == []
 
 
+def pendulum_with_ida(tmp_path, ida, name="budget.yaml"):
+    """The pendulum model with `integrator: ida` and the given `ida:` block text."""
+    text = open(os.path.join(MODELS, "pendulum.yaml")).read()
+    text = text.replace("integrator: hht", "integrator: ida")
+    text = text.replace("ida: {rtol: 1.0e-8, atol: 1.0e-10}", "ida: " + ida)
+    (tmp_path / name).write_text(text)
+    return name, text.splitlines().index("  ida: " + ida) + 1
+
+
+def test_step_budget_from_the_model_file_ends_the_run_with_exit_3(tmp_path):
+    # simulation: {ida: {max_steps: 60}}: the run stops when the 60 steps are used up,
+    # long before t_end = 0.5, as a solver failure with the rows up to there.
+    model, _ = pendulum_with_ida(tmp_path, "{rtol: 1.0e-8, atol: 1.0e-10, max_steps: 60}")
+    p = run(["simulate", model, "--quiet"], tmp_path)
+    assert p.returncode == 3, p.stderr
+    err = p.stderr
+    assert err.startswith("mbdae: error: the solver failed at t = "), err
+    assert "IDA: the step budget of 60 steps is used up at t = " in err, err
+    assert "the results up to there are in budget.h5" in err, err
+    with h5py.File(tmp_path / "budget.h5", "r") as f:
+        assert as_str(f.attrs["status"]) == "failed"
+        assert "step budget of 60 steps" in as_str(f.attrs["failure_reason"])
+        assert f.attrs["ida_max_steps"] == 60 and f.attrs["ida_min_step"] == 0
+        assert f.attrs["steps_accepted"] == 60
+        t_reached = float(f.attrs["t_reached"])
+        assert 0 < t_reached < 0.5
+        times = f["time"][()]
+        assert len(times) >= 1 and times[0] == 0.0
+        assert times[-1] <= t_reached < times[-1] + 0.01 + 1e-9
+        assert f["q"].shape[0] == len(times)
+    assert leftovers(tmp_path) == []
+    # The same model with the default budget (and a smallest step IDA never reaches)
+    # runs to its end.
+    model, _ = pendulum_with_ida(tmp_path, "{rtol: 1.0e-8, atol: 1.0e-10, min_step: 1.0e-12}",
+                                 "enough.yaml")
+    p = run(["simulate", model, "--quiet"], tmp_path)
+    assert p.returncode == 0, p.stderr
+    with h5py.File(tmp_path / "enough.h5", "r") as f:
+        assert as_str(f.attrs["status"]) == "done"
+        assert f.attrs["ida_max_steps"] == 100000000 and f.attrs["ida_min_step"] == 1e-12
+        assert f.attrs["steps_accepted"] > 60
+
+
+@pytest.mark.parametrize("ida,message", [
+    ("{max_steps: 0}", "simulation: ida max_steps must be a whole number >= 1, got 0"),
+    ("{max_steps: 2.5}", "simulation: ida max_steps must be a whole number >= 1, got 2.5"),
+    ("{max_steps: -3}", "simulation: ida max_steps must be a whole number >= 1, got -3"),
+    ("{min_step: 0}", "simulation: ida min_step must be > 0, got 0"),
+    ("{min_step: -1e-9}", "simulation: ida min_step must be > 0, got -1e-09"),
+    ("{min_step: 1/0}", "simulation: 'ida min_step' evaluates to inf"),
+    ("{max_step: 10}", "simulation: unknown key 'max_step'; did you mean 'max_steps'?"),
+], ids=["max_steps-0", "max_steps-fraction", "max_steps-negative", "min_step-0",
+        "min_step-negative", "min_step-inf", "misspelt"])
+def test_bad_ida_step_settings_exit_2_with_file_and_line(tmp_path, ida, message):
+    model, line = pendulum_with_ida(tmp_path, ida)
+    p = run(["simulate", model, "--quiet"], tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.startswith("mbdae: error: %s:%d:" % (model, line)), p.stderr
+    assert message in p.stderr, p.stderr
+    assert not list(tmp_path.glob("*.h5")) and leftovers(tmp_path) == []
+    p = run(["check", model], tmp_path)
+    assert p.returncode == 2 and message in p.stderr, p.stderr
+
+
 def test_fourbar_through_its_singular_positions_runs_to_the_end(tmp_path):
     # IDA at rtol = atol = 1e-10 crept through the first singular position with steps of
     # 1e-20 s; since issue 11, part 1 it passes all of them (tests/app/test_singular_passage.py).

@@ -145,6 +145,8 @@ void ExpectSameModel(const Model& a, const Model& b) {
   EXPECT_EQ(s.hht_modified, r.hht_modified);
   EXPECT_EQ(s.ida_rtol, r.ida_rtol);
   EXPECT_EQ(s.ida_atol, r.ida_atol);
+  EXPECT_EQ(s.ida_max_steps, r.ida_max_steps);
+  EXPECT_EQ(s.ida_min_step, r.ida_min_step);
 }
 
 // Whether the YAML loader reads force values over measures and t (the elements work).

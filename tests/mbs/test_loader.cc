@@ -199,7 +199,45 @@ TEST(Loader, EveryKey) {
   EXPECT_EQ(sim.hht_form, "negrut");
   EXPECT_EQ(sim.ida_rtol, 1e-6);
   EXPECT_EQ(sim.ida_atol, 1e-9);
+  EXPECT_EQ(sim.ida_max_steps, 250000);
+  EXPECT_EQ(sim.ida_min_step, 1e-14);
   EXPECT_EQ(m.file, ModelPath("every_key.yaml"));
+}
+
+// simulation: {ida: {max_steps, min_step}}: IDA's step budget and smallest step; the
+// defaults unchanged when absent; bad values refused with the file, line and column.
+TEST(Loader, IdaStepBudgetAndSmallestStep) {
+  const SimulationSettings defaults;
+  EXPECT_EQ(defaults.ida_max_steps, 100000000);
+  EXPECT_EQ(defaults.ida_min_step, 0);
+  Model m = LoadModelFromString("format: 1\nsimulation: {ida: {rtol: 1e-6}}\n", "m.yaml");
+  EXPECT_EQ(m.simulation.ida_max_steps, defaults.ida_max_steps);
+  EXPECT_EQ(m.simulation.ida_min_step, defaults.ida_min_step);
+  m = LoadModelFromString(
+      "format: 1\nparameters: {n: 400}\nsimulation: {ida: {max_steps: 3*n, min_step: 2.5e-9}}\n", "m.yaml");
+  EXPECT_EQ(m.simulation.ida_max_steps, 1200);
+  EXPECT_EQ(m.simulation.ida_min_step, 2.5e-9);
+  m = LoadModelFromString("format: 1\nsimulation: {ida: {max_steps: 1e12}}\n", "m.yaml");
+  EXPECT_EQ(m.simulation.ida_max_steps, 1000000000000L);
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"{max_steps: 0}", "m.yaml:3:20: simulation: ida max_steps must be a whole number >= 1, got 0"},
+      {"{max_steps: -5}", "m.yaml:3:20: simulation: ida max_steps must be a whole number >= 1, got -5"},
+      {"{max_steps: 10.5}", "m.yaml:3:20: simulation: ida max_steps must be a whole number >= 1, got 10.5"},
+      {"{max_steps: 1e30}", "m.yaml:3:20: simulation: ida max_steps must be a whole number >= 1, got 1e+30"},
+      {"{max_steps: many}", "m.yaml:3:20: simulation: 'ida max_steps': in expression 'many'"},
+      {"{max_steps: [1]}", "m.yaml:3:20: simulation:"},
+      {"{min_step: 0}", "m.yaml:3:19: simulation: ida min_step must be > 0, got 0"},
+      {"{min_step: -1e-9}", "m.yaml:3:19: simulation: ida min_step must be > 0, got -1e-09"},
+      {"{min_step: 1/0}", "m.yaml:3:19: simulation: 'ida min_step' evaluates to inf"},
+      {"{min_steps: 1e-9}", "m.yaml:3:9: simulation: unknown key 'min_steps'; did you mean 'min_step'?"},
+      {"{max_step: 100}", "m.yaml:3:9: simulation: unknown key 'max_step'; did you mean 'max_steps'?"},
+  };
+  for (const auto& [ida, message] : bad) {
+    const std::string error = LoadError("format: 1\nsimulation:\n  ida: " + ida + "\n");
+    EXPECT_EQ(error.find(message), 0u) << ida << ": " << error << "\nexpected: " << message;
+  }
+  EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {ida: {max_step: 100}}\n"),
+                       "(allowed keys: rtol, atol, max_steps, min_step)"));
 }
 
 TEST(Loader, MinimalModelAndDefaults) {
