@@ -120,7 +120,7 @@ std::vector<std::string> ObjectiveNames(const mbs::Model& model) {
 
 void ReadSimulation(const ProblemReader& r, const YAML::Node& node, SettingsOverrides* o) {
   const std::string element = "simulation";
-  r.CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida"});
+  r.CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida", "output_accelerations"});
   if (const YAML::Node n = node["t_end"]) o->t_end = r.Number(n, element, "t_end");
   if (const YAML::Node n = node["output_step"]) o->output_step = r.Number(n, element, "output_step");
   if (const YAML::Node n = node["integrator"]) {
@@ -133,7 +133,7 @@ void ReadSimulation(const ProblemReader& r, const YAML::Node& node, SettingsOver
       r.Fail(n, element, "integrator must be hht or ida, got '" + v + "'");
   }
   if (const YAML::Node h = node["hht"]) {
-    r.CheckKeys(h, element + " hht", {"alpha", "step", "adaptive", "tolerance", "modified", "form"});
+    r.CheckKeys(h, element + " hht", {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start"});
     if (const YAML::Node n = h["alpha"]) o->hht_alpha = r.Number(n, element, "hht alpha");
     if (const YAML::Node n = h["step"]) o->hht_step = r.Number(n, element, "hht step");
     if (const YAML::Node n = h["adaptive"]) o->hht_adaptive = r.Bool(n, element, "hht adaptive");
@@ -145,11 +145,34 @@ void ReadSimulation(const ProblemReader& r, const YAML::Node& node, SettingsOver
         r.Fail(n, element, "hht form must be equilibrium or negrut, got '" + v + "'");
       o->hht_form = v;
     }
+    if (const YAML::Node n = h["start"]) {
+      const std::string v = r.Name(n, element, "hht start");
+      if (v != "consistent" && v != "perturbed")
+        r.Fail(n, element, "hht start must be consistent or perturbed, got '" + v + "'");
+      o->hht_start = v;
+    }
+  }
+  if (const YAML::Node n = node["output_accelerations"]) {
+    const std::string v = r.Name(n, element, "output_accelerations");
+    if (v != "solved" && v != "integrator")
+      r.Fail(n, element, "output_accelerations must be solved or integrator, got '" + v + "'");
+    o->output_accelerations = v;
   }
   if (const YAML::Node i = node["ida"]) {
-    r.CheckKeys(i, element + " ida", {"rtol", "atol"});
+    r.CheckKeys(i, element + " ida", {"rtol", "atol", "max_steps", "min_step"});
     if (const YAML::Node n = i["rtol"]) o->ida_rtol = r.Number(n, element, "ida rtol");
     if (const YAML::Node n = i["atol"]) o->ida_atol = r.Number(n, element, "ida atol");
+    if (const YAML::Node n = i["max_steps"]) {
+      long long k = 0;
+      if (!n.IsScalar() || !YAML::convert<long long>::decode(n, k) || k < 1)
+        r.Fail(n, element, "ida max_steps must be a whole number of at least 1, got " + r.Kind(n));
+      o->ida_max_steps = static_cast<long>(k);
+    }
+    if (const YAML::Node n = i["min_step"]) {
+      const double h = r.Number(n, element, "ida min_step");
+      if (!(h > 0) || !std::isfinite(h)) r.Fail(n, element, "ida min_step must be a positive number, got " + Num(h));
+      o->ida_min_step = h;
+    }
   }
 }
 

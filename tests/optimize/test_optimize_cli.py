@@ -125,6 +125,10 @@ GOOD = open(os.path.join(HERE, "rotor_problem.yaml")).read()
     (("minimize: energy", "minimise: energy"), 7, "unknown key 'minimise'"),
     (("max_iter: 100", "max_iters: 100"), 11, "unknown Ipopt option 'max_iters'"),
     (("max_iter: 100", "max_iter: many"), 11, "takes an integer"),
+    (("ipopt:", "simulation: {integrator: ida, ida: {max_steps: 0}}\nipopt:"), 11, "ida max_steps must be a whole number"),
+    (("ipopt:", "simulation: {integrator: ida, ida: {min_step: -1}}\nipopt:"), 11, "ida min_step must be a positive number"),
+    (("ipopt:", "simulation: {hht: {start: smooth}}\nipopt:"), 11, "hht start must be consistent or perturbed"),
+    (("ipopt:", "simulation: {output_accelerations: exact}\nipopt:"), 11, "output_accelerations must be solved or integrator"),
 ])
 def test_bad_problem_exits_2_naming_file_and_line(tmp_path, change, line, needle):
     assert change[0] in GOOD
@@ -133,6 +137,23 @@ def test_bad_problem_exits_2_naming_file_and_line(tmp_path, change, line, needle
     p = optimize(problem, "--json", "-o", str(out), expect=2)
     assert f"{problem}:{line}:" in p.stderr and needle in p.stderr, p.stderr
     assert p.stdout == "" and not out.exists() and not (tmp_path / "problem.h5").exists()
+
+
+def test_simulation_overrides_reach_the_final_run(tmp_path):
+    # the problem's simulation: block takes the model's keys: IDA's step budget (too
+    # small: the run fails, exit 3, as the model file's max_steps would), HHT's start and
+    # the output rows' accelerations (written as the final run's attributes)
+    problem = copy_problem(tmp_path, GOOD.replace(
+        "ipopt:", "simulation: {hht: {start: perturbed}, output_accelerations: integrator}\nipopt:"))
+    out = tmp_path / "o.h5"
+    d = json.loads(optimize(problem, "--json", "-o", str(out)).stdout)
+    assert d["status"] == "solved" and abs(d["objective"] - OPTIMUM) / OPTIMUM < 1e-4
+    with h5py.File(out, "r") as f:
+        assert f.attrs["output_accelerations"] == "integrator"
+    problem = copy_problem(tmp_path, GOOD.replace(
+        "ipopt:", "simulation: {integrator: ida, ida: {max_steps: 5}}\nipopt:"))
+    p = optimize(problem, "--json", "-o", str(tmp_path / "ida.h5"), expect=3)
+    assert "max_steps" in p.stderr or "step budget" in p.stderr, p.stderr
 
 
 def test_missing_problem_file_exits_2(tmp_path):
