@@ -10,11 +10,15 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 
 import h5py
 import numpy as np
 import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
+from running import start_until_temporary, temporary_files  # noqa: E402
 
 MBDAE = os.environ.get("MBDAE_BIN", "build/mbdae")
 MODELS = os.environ.get("MBDAE_APP_MODELS", "tests/app/models")
@@ -182,8 +186,7 @@ def test_objective_over_an_unknown_measure_exits_2_naming_it(tmp_path):
 
 # ---- the results file (-o): written beside it, renamed at the end (docs/cli.md) ----------
 
-def tmp_files(folder):
-    return sorted(p.name for p in folder.glob("*.tmp"))
+tmp_files = temporary_files
 
 
 def run_in(folder, *args):
@@ -228,14 +231,8 @@ def test_signal_removes_the_temporary_file_and_keeps_the_earlier_one(tmp_path, s
     out = tmp_path / "g.h5"
     out.write_bytes(b"earlier results")
     # A forward run of 1e4 s (1e7 steps): still going when the signal comes.
-    proc = subprocess.Popen([MBDAE, "gradient", MODEL, "--wrt", "k", "--t-end", "1e4", "--quiet",
-                             "-o", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for _ in range(600):
-        if tmp_files(tmp_path) or proc.poll() is not None:
-            break
-        time.sleep(0.1)
-    assert proc.poll() is None, proc.communicate()
+    proc = start_until_temporary([MBDAE, "gradient", MODEL, "--wrt", "k", "--t-end", "1e4",
+                                  "--quiet", "-o", str(out)], tmp_path)
     assert tmp_files(tmp_path) == ["g.h5.%d.tmp" % proc.pid]
     # While the run goes on, the earlier file is as it was.
     time.sleep(0.5)

@@ -18,11 +18,15 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 
 import h5py
 import numpy as np
 import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
+from running import start_until_temporary, temporary_files  # noqa: E402
 
 MBDAE = os.environ.get("MBDAE_BIN", "mbdae")
 MODELS = os.environ.get("MBDAE_APP_MODELS", os.path.join(os.path.dirname(__file__), "models"))
@@ -41,8 +45,7 @@ def as_str(x):
     return x.decode() if isinstance(x, bytes) else str(x)
 
 
-def leftovers(tmp_path):
-    return sorted(p.name for p in tmp_path.glob("*.tmp"))
+leftovers = temporary_files
 
 
 # model, time of the stop, output times kept
@@ -208,14 +211,9 @@ def test_a_refused_run_leaves_the_earlier_file(tmp_path):
 def start_long_run(tmp_path, model, out, integrator):
     """mbdae simulate of a run of 1e5 s (HHT: 1e8 steps), returns the process once the
     temporary results file exists (the run is then integrating or about to)."""
-    proc = subprocess.Popen([MBDAE, "simulate", model, "-o", out, "--integrator", integrator,
-                             "--t-end", "1e5", "--output-step", "0.01", "--quiet"],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for _ in range(600):
-        if leftovers(tmp_path) or proc.poll() is not None:
-            break
-        time.sleep(0.1)
-    assert proc.poll() is None, proc.communicate()
+    proc = start_until_temporary([MBDAE, "simulate", model, "-o", out, "--integrator", integrator,
+                                  "--t-end", "1e5", "--output-step", "0.01", "--quiet"],
+                                 tmp_path, cwd=tmp_path)
     assert leftovers(tmp_path) == [out + ".%d.tmp" % proc.pid]
     return proc
 

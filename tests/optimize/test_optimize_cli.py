@@ -10,11 +10,15 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import time
 
 import h5py
 import numpy as np
 import pytest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
+from running import start_until_temporary, temporary_files  # noqa: E402
 
 MBDAE = os.environ.get("MBDAE_BIN", "build/mbdae")
 HERE = os.environ.get("MBDAE_OPTIMIZE_DIR", "tests/optimize")
@@ -284,8 +288,7 @@ def test_bad_shooting_exits_2_naming_file_and_line(tmp_path, change, line, needl
 
 # ---- the results file: written beside it, renamed at the end (docs/cli.md) -------------
 
-def tmp_files(folder):
-    return sorted(p.name for p in folder.glob("*.tmp"))
+tmp_files = temporary_files
 
 
 def test_an_earlier_results_file_is_replaced_at_the_end(tmp_path):
@@ -335,13 +338,8 @@ def test_signal_removes_the_temporary_file_and_keeps_the_earlier_one(tmp_path, s
     problem.write_text(problem.read_text().replace("max_iter: 100", "max_iter: 100000"))
     out = tmp_path / "out.h5"
     out.write_bytes(b"earlier results")
-    proc = subprocess.Popen([MBDAE, "optimize", str(problem), "--quiet", "-o", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    for _ in range(600):
-        if tmp_files(tmp_path) or proc.poll() is not None:
-            break
-        time.sleep(0.1)
-    assert proc.poll() is None, proc.communicate()
+    proc = start_until_temporary([MBDAE, "optimize", str(problem), "--quiet", "-o", str(out)],
+                                 tmp_path)
     assert tmp_files(tmp_path) == ["out.h5.%d.tmp" % proc.pid]
     # While the optimisation goes on, the earlier file is as it was.
     time.sleep(0.5)
