@@ -101,10 +101,6 @@ const std::vector<std::string>& Categories() {
 const std::vector<std::pair<std::string, std::string>>& IgnoredFreeDynKeys() {
   static const std::vector<std::pair<std::string, std::string>> keys = {
       {"Body", "RegardVelocityInertiaForcesInsideJacobian"},
-      {"Body", "Geometry"},
-      {"Body", "Geometry Position"},
-      {"Body", "Geometry Orientation"},
-      {"Body", "Geometry Color"},
       {"Body", "Geometry Transparency"},
       {"Simulation", "isExactOutputTimeEnforced"},
       {"Simulation", "WriteConstraintForceResultFile"},
@@ -366,7 +362,9 @@ class FreeDynReader {
     const std::string& c = b.category;
     const std::string& t = b.type;
     if (c == "Header") return {};
-    if (c == "Body") return {"InitialVelocityVector", "InitialOmegaVector", "Mass", "LocationCenterMass", "Inertia", "OrientationPAI"};
+    if (c == "Body")
+      return {"InitialVelocityVector", "InitialOmegaVector", "Mass", "LocationCenterMass", "Inertia", "OrientationPAI",
+              "Geometry", "Geometry Position", "Geometry Orientation", "Geometry Color"};
     if (c == "Constraint") return {"BodyIDs", "dxFixed", "dyFixed", "dzFixed", "axFixed", "ayFixed", "azFixed", "Location", "ConstraintOrientation"};
     if (c == "Force" && t == "GenericForce")
       return {"BodyIDs", "PointOfApplication_Body1", "PointOfApplication_Body2", "ForceDirectionType", "ForceDirection", "ForceExpression"};
@@ -654,7 +652,43 @@ class FreeDynReader {
     body_ids_[id.value] = {index, id.line};
     body.cm_marker = static_cast<int>(pending_.size());
     pending_.push_back(Marker{"cm", index, Vec3::Zero(), Mat3::Identity(), body.where});
+    ReadGeometry(b, &body, A);
     model_.bodies.push_back(body);
+  }
+
+  // `Geometry = Box a b c` (edge lengths), placed by `Geometry Position` (world, t = 0;
+  // default the centre of mass) and `Geometry Orientation` (rows: the box's axes in
+  // world), coloured by `Geometry Color` (r, g, b, a in 0..255). Other Geometry values
+  // are not drawn (the body gets the default drawing; docs/freedyn.md).
+  void ReadGeometry(const Block& b, Body* body, const Mat3& A) const {
+    const Entry* g = Find(b, "Geometry");
+    if (!g) return;
+    std::istringstream words(g->value);
+    std::string kind;
+    words >> kind;
+    if (Lower(kind) != "box") return;
+    std::vector<double> size;
+    std::string word;
+    while (words >> word) size.push_back(Number(*g, Element(b), word));
+    if (size.size() != 3 || !(std::min({size[0], size[1], size[2]}) > 0))
+      Fail(*g, Element(b), "'Geometry = Box' takes three edge lengths > 0, got '" + g->value + "'");
+    VisualShape v;
+    v.kind = VisualKind::kBox;
+    v.size = Vec3(size[0], size[1], size[2]);
+    v.position = A.transpose() * (Vector(b, "Geometry Position", body->position) - body->position);
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(v.position[k]) < 1e-14 * std::max(1.0, body->position.norm())) v.position[k] = 0;
+    v.orientation = A.transpose() * Axes(b, "Geometry Orientation");
+    if ((v.orientation - Mat3::Identity()).cwiseAbs().maxCoeff() <= 1e-14) v.orientation = Mat3::Identity();
+    if (const Entry* c = Find(b, "Geometry Color")) {
+      const std::vector<double> rgba = Numbers(*c, Element(b), 4);
+      for (int k = 0; k < 4; ++k) {
+        if (!(rgba[k] >= 0 && rgba[k] <= 255)) Fail(*c, Element(b), "'Geometry Color' takes 4 numbers in 0..255");
+        v.color[k] = rgba[k] / 255.0;
+      }
+    }
+    v.where = At(g->line, g->key_column);
+    body->visuals.push_back(v);
   }
 
   // Body index for an ID ("0": ground, -1).

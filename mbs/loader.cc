@@ -172,6 +172,9 @@ class Loader {
   mutable std::vector<Expression>* keep_ = nullptr;
   mutable std::vector<LoadTimeValue> load_time_values_;
   mutable OrientationForm orientation_form_ = OrientationForm::kNone;
+  // While true, load-time values are drawing only (`visual:`): not recorded as uses of
+  // parameters (they do not affect the motion).
+  mutable bool drawing_ = false;
 
   // ---- locations and failures ------------------------------------------------------
 
@@ -371,7 +374,7 @@ class Loader {
     // Parameter derivatives: every load-time use of a parameter is recorded; within a
     // KeepExpressions scope the expression is also kept where the value is used.
     if (keep_) keep_->push_back(e);
-    if (!e.parameters_used().empty()) {
+    if (!drawing_ && !e.parameters_used().empty()) {
       load_time_values_.push_back(LoadTimeValue{e, element, key, keep_ != nullptr, At(node)});
     }
     if (!std::isfinite(value)) {
@@ -742,7 +745,8 @@ class Loader {
     origin.where = SourceLocation{file_, 0, 0};
     model_.markers.push_back(origin);
     if (!node) return;
-    CheckKeys(node, "ground", {"markers"}, "ground");
+    CheckKeys(node, "ground", {"markers", "visual"}, "ground");
+    if (const YAML::Node v = node["visual"]) model_.ground_visuals = Visuals(v, "ground");
     const YAML::Node markers = node["markers"];
     if (!markers) return;
     if (!markers.IsMap()) Fail(markers, "ground", "'markers' must be a mapping {NAME: {position, orientation}}");
@@ -784,7 +788,7 @@ class Loader {
     if (const YAML::Node name = node["name"]) element = "body '" + String(name, element, "name") + "'";
     CheckKeys(node, element,
               {"name", "mass", "inertia", "geometry", "position", "orientation", "velocity", "angular_velocity",
-               "markers"});
+               "markers", "visual"});
     Body body;
     body.name = String(Required(node, element, "name"), element, "name");
     body.where = At(node);
@@ -794,7 +798,8 @@ class Loader {
 
     // Mass properties: explicit values win; a geometry with a density gives the rest.
     std::optional<MassProperties> from_geometry;
-    if (const YAML::Node g = node["geometry"]) from_geometry = Geometry(g, element);
+    if (const YAML::Node g = node["geometry"]) from_geometry = Geometry(g, element, &body.visuals);
+    if (const YAML::Node v = node["visual"]) body.visuals = Visuals(v, element);
     if (from_geometry) {
       body.mass = from_geometry->mass;
       body.inertia = from_geometry->inertia;
@@ -866,13 +871,15 @@ class Loader {
   }
 
   // Geometry: mass properties if it has a density.
-  std::optional<MassProperties> Geometry(const YAML::Node& node, const std::string& element) const {
+  // *drawn (if not null) gets the shape as drawn (mbs/visual.h).
+  std::optional<MassProperties> Geometry(const YAML::Node& node, const std::string& element,
+                                         std::vector<VisualShape>* drawn = nullptr) const {
     if (!node.IsMap()) Fail(node, element, "'geometry' must be a mapping {shape: ...}, got " + Kind(node));
     enum Shape { kSphere, kCylinder, kCone, kBox, kMesh };
     const Shape shape = Enum<Shape>(Required(node, element, "shape"), element, "shape",
                                     {{"sphere", kSphere}, {"cylinder", kCylinder}, {"cone", kCone}, {"box", kBox},
                                      {"mesh", kMesh}});
-    if (shape == kMesh) return MeshGeometry(node, element);
+    if (shape == kMesh) return MeshGeometry(node, element, drawn);
     switch (shape) {
       case kSphere: CheckKeys(node, element, {"shape", "radius", "density"}, "geometry"); break;
       case kCylinder:
@@ -893,6 +900,16 @@ class Loader {
       size = Vector3(s, element, "geometry size");
       if (!(size.minCoeff() > 0)) Fail(s, element, "geometry size must be > 0 along each axis");
     }
+    if (drawn) {
+      VisualShape v;
+      v.kind = shape == kSphere ? VisualKind::kSphere : shape == kCylinder ? VisualKind::kCylinder
+               : shape == kCone ? VisualKind::kCone : VisualKind::kBox;
+      v.size = size;
+      v.radius = radius;
+      v.length = length;
+      v.where = At(node);
+      drawn->assign(1, v);
+    }
     const YAML::Node d = node["density"];
     if (!d) return std::nullopt;
     const double density = LoadTimeNumber(d, element, "geometry density");
@@ -908,7 +925,8 @@ class Loader {
   // A triangle mesh (STL or OBJ; the file relative to the model file) scaled by
   // `scale`: with a density, mass and inertia about its centre of mass in mesh axes.
   // The body's axes are the mesh axes; its markers are relative to the centre of mass.
-  std::optional<MassProperties> MeshGeometry(const YAML::Node& node, const std::string& element) const {
+  std::optional<MassProperties> MeshGeometry(const YAML::Node& node, const std::string& element,
+                                             std::vector<VisualShape>* drawn = nullptr) const {
     CheckKeys(node, element, {"shape", "file", "scale", "density"}, "geometry");
     const YAML::Node f = Required(node, element, "file");
     const std::string name = String(f, element, "geometry file");
@@ -931,6 +949,15 @@ class Loader {
     try {
       // Read and checked (closed, consistently oriented) even without a density.
       const MeshBodyProperties mesh = LoadMeshBody(path.string(), density > 0 ? density : 1.0, scale);
+      if (drawn) {  // mesh axes are body axes, the body origin its centre of mass
+        VisualShape v;
+        v.kind = VisualKind::kMesh;
+        v.mesh_file = path.string();
+        v.mesh_scale = scale;
+        v.position = -mesh.centre_of_mass;
+        v.where = At(node);
+        drawn->assign(1, v);
+      }
       if (!d) return std::nullopt;
       MassProperties mp = mesh.mass;
       if (density == 0) mp = MassProperties{};
@@ -939,6 +966,92 @@ class Loader {
       Fail(f, element, std::string("mesh: ") + e.what());
     }
     return std::nullopt;
+  }
+
+  // `visual:` of a body or of ground: one shape or a list of shapes (drawing only; see
+  // VisualShape in mbs/model.h and docs/model-format.md, "Visual geometry").
+  std::vector<VisualShape> Visuals(const YAML::Node& node, const std::string& element) const {
+    struct Drawing {
+      explicit Drawing(const Loader* l) : l_(l) { l_->drawing_ = true; }
+      ~Drawing() { l_->drawing_ = false; }
+      const Loader* l_;
+    } drawing(this);
+    std::vector<VisualShape> out;
+    if (node.IsMap()) {
+      out.push_back(Visual(node, element));
+    } else if (node.IsSequence()) {
+      for (size_t k = 0; k < node.size(); ++k) out.push_back(Visual(node[k], element + ", visual #" + std::to_string(k + 1)));
+    } else {
+      Fail(node, element, "'visual' must be a shape {shape: ...} or a list of shapes, got " + Kind(node));
+    }
+    return out;
+  }
+
+  VisualShape Visual(const YAML::Node& node, const std::string& element) const {
+    if (!node.IsMap()) Fail(node, element, "a visual shape must be a mapping {shape: ...}, got " + Kind(node));
+    VisualShape v;
+    v.where = At(node);
+    v.kind = Enum<VisualKind>(Required(node, element, "shape"), element, "shape",
+                              {{"box", VisualKind::kBox}, {"sphere", VisualKind::kSphere},
+                               {"cylinder", VisualKind::kCylinder}, {"capsule", VisualKind::kCapsule},
+                               {"cone", VisualKind::kCone}, {"mesh", VisualKind::kMesh}});
+    auto positive = [&](const char* key) {
+      const YAML::Node n = Required(node, element, key);
+      const double x = LoadTimeNumber(n, element, std::string("visual ") + key);
+      if (!(x > 0)) Fail(n, element, std::string("visual ") + key + " must be > 0, got " + Num(x));
+      return x;
+    };
+    switch (v.kind) {
+      case VisualKind::kBox: {
+        CheckKeys(node, element, {"shape", "size", "position", "orientation", "color"}, "visual");
+        const YAML::Node s = Required(node, element, "size");
+        v.size = Vector3(s, element, "visual size");
+        if (!(v.size.minCoeff() > 0)) Fail(s, element, "visual size must be > 0 along each axis");
+        break;
+      }
+      case VisualKind::kSphere:
+        CheckKeys(node, element, {"shape", "radius", "position", "orientation", "color"}, "visual");
+        v.radius = positive("radius");
+        break;
+      case VisualKind::kMesh: {
+        CheckKeys(node, element, {"shape", "file", "scale", "position", "orientation", "color"}, "visual");
+        const YAML::Node f = Required(node, element, "file");
+        const std::string name = String(f, element, "visual file");
+        std::filesystem::path path(name);
+        if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(path, ec))
+          Fail(f, element, "mesh file '" + name + "' not found (relative paths are relative to the model file)");
+        v.mesh_file = path.string();
+        if (node["scale"]) v.mesh_scale = positive("scale");
+        try {
+          ReadMesh(v.mesh_file);  // checked now: a bad file fails here, not when drawn
+        } catch (const std::exception& e) {
+          Fail(f, element, std::string("mesh: ") + e.what());
+        }
+        break;
+      }
+      default:  // cylinder, capsule, cone
+        CheckKeys(node, element, {"shape", "radius", "length", "position", "orientation", "color"}, "visual");
+        v.radius = positive("radius");
+        v.length = positive("length");
+        break;
+    }
+    if (const YAML::Node p = node["position"]) v.position = Vector3(p, element, "visual position");
+    if (const YAML::Node o = node["orientation"]) {
+      const OrientationForm form = orientation_form_;
+      v.orientation = RotationMatrix(Orientation(o, element, "visual orientation"));
+      orientation_form_ = form;
+    }
+    if (const YAML::Node c = node["color"]) {
+      const std::vector<double> rgba = Numbers(c, element, "visual color", {3, 4});
+      for (size_t k = 0; k < rgba.size(); ++k) {
+        if (!(rgba[k] >= 0 && rgba[k] <= 1))
+          Fail(c[k], element, "visual color: red, green, blue (and opacity) must be in [0, 1], got " + Num(rgba[k]));
+        v.color[k] = rgba[k];
+      }
+    }
+    return v;
   }
 
   // ---- measures, joints, forces -------------------------------------------------

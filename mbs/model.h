@@ -80,6 +80,34 @@ struct Marker {
   SourceLocation where;
 };
 
+// A shape drawn for a body or for ground (`visual:` in the model file; docs/model-format.md,
+// "Visual geometry"). Drawing only: no mass, no effect on the motion. How to fill one
+// (the YAML loader, the FreeDyn reader and importers such as URDF do the same):
+//   - kind and its sizes: box: `size` (edge lengths along the shape's x, y, z); sphere:
+//     `radius`; cylinder: `radius`, `length` along the shape's z; capsule: `radius`,
+//     `length` (the cylinder part along z, between the centres of the end spheres);
+//     cone: `radius` (base), `length` along z, apex towards +z, origin at its centre of
+//     mass (length/4 above the base, as `geometry: {shape: cone}`); mesh: `mesh_file`
+//     (STL or OBJ, path as resolved for reading) scaled by `mesh_scale`, vertices in the
+//     shape's axes. Box, sphere, cylinder and capsule are centred on the shape origin.
+//   - pose: `position` of the shape origin in body axes from the body's centre of mass
+//     and `orientation` (shape axes to body axes); for ground, world coordinates and axes.
+//   - `color`: red, green, blue, opacity in [0, 1].
+// A body with no shapes is drawn by default from what it has (mbs/visual.h).
+enum class VisualKind { kBox, kSphere, kCylinder, kCapsule, kCone, kMesh };
+struct VisualShape {
+  VisualKind kind = VisualKind::kBox;
+  Vec3 size = Vec3::Zero();  // box
+  double radius = 0;         // sphere, cylinder, capsule, cone
+  double length = 0;         // cylinder, capsule, cone
+  std::string mesh_file;     // mesh
+  double mesh_scale = 1;     // mesh
+  Vec3 position = Vec3::Zero();
+  Mat3 orientation = Mat3::Identity();
+  std::array<double, 4> color = {0.62, 0.66, 0.72, 1.0};
+  SourceLocation where;
+};
+
 struct Body {
   std::string name;
   double mass = 0;
@@ -89,6 +117,7 @@ struct Body {
   Vec3 velocity = Vec3::Zero();          // initial, world
   Vec3 angular_velocity = Vec3::Zero();  // initial, world axes
   int cm_marker = -1;           // index of the marker `cm`
+  std::vector<VisualShape> visuals;  // drawing only; `visual:` (or `geometry:`) in the file
   BodyExpressions expressions;  // the values as written, for parameter derivatives
   SourceLocation where;
 };
@@ -250,6 +279,7 @@ struct Model {
   std::vector<SplineDef> splines;  // in file order
   std::vector<Marker> markers;   // ground markers first (ground.O is index 0), then bodies'
   std::vector<Body> bodies;
+  std::vector<VisualShape> ground_visuals;  // `ground: {visual: ...}`, world coordinates
   std::vector<Measure> measures;
   std::vector<Joint> joints;
   std::vector<Force> forces;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <sstream>
@@ -90,6 +91,35 @@ void WriteMarkers(std::ostringstream& s, const Model& model, int body, const cha
   }
 }
 
+// `visual:` (drawing only; VisualShape in mbs/model.h): one flow mapping per shape.
+void WriteVisuals(std::ostringstream& s, const std::vector<VisualShape>& visuals, const char* indent) {
+  if (visuals.empty()) return;
+  s << indent << "visual:\n";
+  for (const VisualShape& v : visuals) {
+    s << indent << "  - {shape: ";
+    switch (v.kind) {
+      case VisualKind::kBox: s << "box, size: " << Vector(v.size); break;
+      case VisualKind::kSphere: s << "sphere, radius: " << Num(v.radius); break;
+      case VisualKind::kCylinder: s << "cylinder, radius: " << Num(v.radius) << ", length: " << Num(v.length); break;
+      case VisualKind::kCapsule: s << "capsule, radius: " << Num(v.radius) << ", length: " << Num(v.length); break;
+      case VisualKind::kCone: s << "cone, radius: " << Num(v.radius) << ", length: " << Num(v.length); break;
+      case VisualKind::kMesh: {
+        // Absolute, so that the written file finds the mesh from wherever it is written.
+        std::error_code ec;
+        std::filesystem::path path = std::filesystem::absolute(v.mesh_file, ec);
+        if (ec) path = v.mesh_file;
+        s << "mesh, file: " << Quoted(path.lexically_normal().string());
+        if (v.mesh_scale != 1) s << ", scale: " << Num(v.mesh_scale);
+        break;
+      }
+    }
+    if (v.position != Vec3::Zero()) s << ", position: " << Vector(v.position);
+    if (!IsIdentity(v.orientation)) s << ", orientation: " << Orientation(QuaternionFromMatrix(v.orientation));
+    s << ", color: [" << Num(v.color[0]) << ", " << Num(v.color[1]) << ", " << Num(v.color[2]) << ", "
+      << Num(v.color[3]) << "]}\n";
+  }
+}
+
 const char* InterpolationKey(Interpolation kind) { return InterpolationName(kind); }
 
 const char* JointTypeName(JointType t) {
@@ -140,9 +170,10 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
 
   bool ground_markers = false;
   for (size_t k = 1; k < model.markers.size(); ++k) ground_markers = ground_markers || model.markers[k].body < 0;
-  if (ground_markers) {
+  if (ground_markers || !model.ground_visuals.empty()) {
     s << "ground:\n";
     WriteMarkers(s, model, -1, "  ");
+    WriteVisuals(s, model.ground_visuals, "  ");
   }
 
   if (!model.bodies.empty()) {
@@ -162,6 +193,7 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
       if (body.velocity != Vec3::Zero()) s << "    velocity: " << Vector(body.velocity) << "\n";
       if (body.angular_velocity != Vec3::Zero()) s << "    angular_velocity: " << Vector(body.angular_velocity) << "\n";
       WriteMarkers(s, model, static_cast<int>(b), "    ");
+      WriteVisuals(s, body.visuals, "    ");
     }
   }
 
