@@ -155,6 +155,10 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--json" && (cl.command == Command::kInfo || grad || opt)) {
       no_value();
       cl.json = true;
+    } else if (arg == "--floating-base") {
+      if (opt) throw UsageError("option --floating-base is not for `optimize` (the problem file names the model)", true);
+      no_value();
+      cl.floating_base = true;
     } else if (arg == "--set") {
       if (opt) throw UsageError("option --set is not for `optimize` (the problem file names the model)", true);
       const std::string a = value();
@@ -270,7 +274,7 @@ std::string DefaultResultsPath(const std::string& model_path) {
     std::string ext = model_path.substr(dot);
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    if (ext == ".yaml" || ext == ".yml" || ext == ".json" || ext == ".fds") return model_path.substr(0, dot) + ".h5";
+    if (ext == ".yaml" || ext == ".yml" || ext == ".json" || ext == ".fds" || ext == ".urdf") return model_path.substr(0, dot) + ".h5";
   }
   return model_path + ".h5";
 }
@@ -320,6 +324,7 @@ ModelInfo Describe(const mbs::Model& model, const driver::Assembly& assembly) {
     info.parameters.push_back(p.name);
     info.parameter_values.push_back(p.value);
   }
+  info.notes = model.notes;
   info.coordinates = assembly.system->coordinate_names();
   info.constraints = assembly.system->constraint_names();
   info.redundant = assembly.redundant_names();
@@ -367,6 +372,7 @@ std::string ModelInfo::Text() const {
   for (size_t i = 0; i < parameters.size(); ++i)
     s << (i ? ", " : ": ") << parameters[i] << " = " << parameter_values[i];
   s << "\n";
+  for (const std::string& note : notes) s << "note:                  " << note << "\n";
   return s.str();
 }
 
@@ -389,7 +395,9 @@ std::string ModelInfo::Json() const {
   s << "  \"parameters\": {";
   for (size_t i = 0; i < parameters.size(); ++i)
     s << (i ? ", " : "") << JsonString(parameters[i]) << ": " << Num(parameter_values[i]);
-  s << "}\n}\n";
+  s << "}";
+  if (!notes.empty()) s << ",\n  \"notes\": " << JsonList(notes);  // imported models (URDF)
+  s << "\n}\n";
   return s.str();
 }
 

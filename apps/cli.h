@@ -39,6 +39,7 @@ struct CommandLine {
   std::map<std::string, double> parameter_overrides;
   bool quiet = false;
   bool json = false;
+  bool floating_base = false;  // --floating-base: a URDF model's root link is a free body
   // gradient (shared/spec/sensitivities.md): --objective (repeatable, or comma-separated),
   // --wrt NAME,NAME (repeatable), --wrt-splines, --method, --fd-step (relative),
   // --trajectory-memory (MiB; 0: store every step).
@@ -53,7 +54,7 @@ struct CommandLine {
 // right after it. Throws UsageError naming the offending argument.
 CommandLine ParseCommandLine(const std::vector<std::string>& args);
 
-// MODEL.yaml|.yml|.json|.fds -> MODEL.h5, next to the model; other names get .h5 appended.
+// MODEL.yaml|.yml|.json|.fds|.urdf -> MODEL.h5, next to the model; other names get .h5 appended.
 std::string DefaultResultsPath(const std::string& model_path);
 
 // Parses a whole argument as a finite number; throws UsageError naming the option.
@@ -81,6 +82,7 @@ struct ModelInfo {
   std::string file, name;
   std::vector<std::string> bodies, joints, measures, forces, parameters, coordinates,
       constraints, redundant;
+  std::vector<std::string> notes;  // Model::notes: what an import (URDF) changed or left out
   std::vector<double> parameter_values;
   int degrees_of_freedom = 0;  // nq - (nc - redundant)
   std::string Text() const;

@@ -207,6 +207,7 @@ int RunInfo(const CommandLine& cl) {
   // A model whose motion is not determined is reported like `check` does (naming the
   // bodies), rather than with the singular solve it would run into.
   driver::Assembly asmb = driver::Assemble(model);
+  lo.urdf_floating_base = cl.floating_base;
   ModelInfo info = Describe(model, asmb);
   std::cout << (cl.json ? info.Json() : info.Text());
   return 0;
@@ -331,6 +332,7 @@ int RunGradient(const CommandLine& cl) {
     RemoveTemporaryOnSignal(*destination);
   }
   driver::GradientResult r = driver::ComputeGradient(model, settings, request, go);
+    lo.urdf_floating_base = cl.floating_base;
   progress.Finish();
   if (destination) {
     destination->Commit();

@@ -20,6 +20,7 @@
 
 #include "dae/hht.h"
 #include "mbs/kinematics.h"
+#include "mbs/urdf.h"
 
 namespace mbdae::mbs {
 
@@ -1083,6 +1084,7 @@ Model LoadFreeDynModel(const std::string& path, const LoadOptions& options) {
 }
 
 Model LoadAnyModel(const std::string& path, const LoadOptions& options) {
+  if (IsUrdfPath(path)) return LoadUrdfModel(path, options);
   return IsFreeDynPath(path) ? LoadFreeDynModel(path, options) : LoadModel(path, options);
 }
 

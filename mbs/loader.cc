@@ -1209,7 +1209,8 @@ class Loader {
           Fail(KeyNode(n, "lock"), element,
                "'lock' is only for joints of type generic; a " + type_node.Scalar() + " joint locks what its type says");
         }
-        CheckKeys(n, element, {"name", "type", "i", "j"});
+        CheckKeys(n, element, {"name", "type", "i", "j", "limits"});
+        if (const YAML::Node l = n["limits"]) joint.limits = JointLimits(l, element);
       }
       joint.i = Marker(Required(n, element, "i"), element, "i");
       joint.j = Marker(Required(n, element, "j"), element, "j");
@@ -1221,6 +1222,24 @@ class Loader {
       }
       model_.joints.push_back(joint);
     }
+  }
+
+  // `limits: {lower, upper, effort, velocity}` of a joint (URDF's <limit>): recorded, not
+  // enforced; lower and upper together or neither, effort and velocity >= 0.
+  Joint::Limits JointLimits(const YAML::Node& l, const std::string& element) {
+    if (!l.IsMap()) Fail(l, element, "'limits' must be a mapping {lower, upper, effort, velocity}, got " + Kind(l));
+    CheckKeys(l, element, {"lower", "upper", "effort", "velocity"});
+    Joint::Limits out;
+    if (l["lower"] || l["upper"]) {
+      out.lower = LoadTimeNumber(Required(l, element, "lower"), element, "limits lower");
+      out.upper = LoadTimeNumber(Required(l, element, "upper"), element, "limits upper");
+      out.has_position = true;
+    }
+    if (l["effort"]) out.effort = LoadTimeNumber(l["effort"], element, "limits effort");
+    if (l["velocity"]) out.velocity = LoadTimeNumber(l["velocity"], element, "limits velocity");
+    if (out.effort < 0) Fail(l["effort"], element, "limits effort must be >= 0, got " + Num(out.effort));
+    if (out.velocity < 0) Fail(l["velocity"], element, "limits velocity must be >= 0, got " + Num(out.velocity));
+    return out;
   }
 
   void LoadForces(const YAML::Node& node) {

@@ -26,6 +26,8 @@ struct LoadOptions {
   // Parameter overrides (--set NAME=VALUE), applied before any expression is evaluated.
   // An override of an unknown parameter is a ModelError.
   std::map<std::string, double> parameter_overrides;
+  // URDF files (mbs/urdf.h): the root link is a free body instead of the ground.
+  bool urdf_floating_base = false;
 };
 
 // Throws ModelError for any mistake; nothing is partially returned.

@@ -171,6 +171,13 @@ struct Joint {
   std::array<int, 2> measures = {-1, -1};  // Model::measures indices
   Expression value;
   double ratio = 1;
+  // Limits of the joint's coordinate (URDF <limit>, the model file's `limits:`): recorded
+  // and written, not enforced. has_position: lower and upper were given.
+  struct Limits {
+    double lower = 0, upper = 0, effort = 0, velocity = 0;
+    bool has_position = false;
+  };
+  std::optional<Limits> limits;
   SourceLocation where;
 };
 
@@ -285,6 +292,9 @@ struct Model {
   std::vector<Force> forces;
   std::vector<Objective> objectives;
   SimulationSettings simulation;
+  // What an import from another format (URDF: mbs/urdf.h) changed or left out, one
+  // sentence each (links merged, visuals not represented, ...); `mbdae info` prints them.
+  std::vector<std::string> notes;
 
   int num_coordinates() const { return 7 * static_cast<int>(bodies.size()); }
   static int coordinate_offset(int body) { return 7 * body; }

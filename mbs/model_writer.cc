@@ -142,6 +142,7 @@ const char* JointTypeName(JointType t) {
 std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options) {
   std::ostringstream s;
   if (!options.source.empty()) s << "# written by mbdae from " << options.source << "\n";
+  for (const std::string& note : model.notes) s << "# note: " << note << "\n";
   s << "format: 1\n";
   if (!model.name.empty()) s << "name: " << Quoted(model.name) << "\n";
   if (model.gravity != Vec3::Zero()) s << "gravity: " << Vector(model.gravity) << "\n";
@@ -266,6 +267,11 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
           first = false;
         }
         s << "]\n";
+      }
+      if (j.limits) {
+        s << "    limits: {";
+        if (j.limits->has_position) s << "lower: " << Num(j.limits->lower) << ", upper: " << Num(j.limits->upper) << ", ";
+        s << "effort: " << Num(j.limits->effort) << ", velocity: " << Num(j.limits->velocity) << "}\n";
       }
     }
   }

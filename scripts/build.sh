@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 packages=(build-essential cmake pkg-config
   libsundials-dev libsuitesparse-dev libeigen3-dev libhdf5-dev libyaml-cpp-dev
   libgtest-dev libbenchmark-dev
-  coinor-libipopt-dev
+  coinor-libipopt-dev liburdfdom-dev
   python3 python3-numpy python3-scipy python3-sympy python3-yaml python3-h5py
   python3-matplotlib python3-pytest)
 

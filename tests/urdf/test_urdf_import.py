@@ -1,0 +1,249 @@
+"""URDF import (mbs/urdf.cc) through the program: what each element becomes, the
+refused files (exit 2, the element named, nothing written), convert and simulate.
+
+Run by CTest (tests/urdf/CMakeLists.txt); by hand:
+    MBDAE=build/mbdae /usr/bin/python3 -m pytest tests/urdf/test_urdf_import.py
+"""
+
+import json
+import math
+import os
+import shutil
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+MBDAE = os.environ.get("MBDAE", os.path.join(ROOT, "build", "mbdae"))
+UR20 = os.path.join(ROOT, "examples", "urdf_arm", "ur20.urdf")
+
+
+def run(*args, cwd=None):
+    return subprocess.run([MBDAE, *args], cwd=cwd, capture_output=True, text=True, timeout=120)
+
+
+INERTIAL = ('<inertial><origin xyz="{x}" rpy="{rpy}"/><mass value="{m}"/>'
+            '<inertia ixx="{ixx}" ixy="{ixy}" ixz="{ixz}" iyy="{iyy}" iyz="{iyz}" izz="{izz}"/></inertial>')
+
+
+def link(name, m=1.0, x="0 0 0", rpy="0 0 0", ixx=0.01, iyy=0.01, izz=0.01, ixy=0, ixz=0, iyz=0):
+    if m is None:
+        return f'<link name="{name}"/>'
+    return (f'<link name="{name}">' + INERTIAL.format(x=x, rpy=rpy, m=m, ixx=ixx, iyy=iyy, izz=izz, ixy=ixy,
+                                                      ixz=ixz, iyz=iyz) + '</link>')
+
+
+def joint(name, parent, child, kind="continuous", xyz="0 0 0", rpy="0 0 0", axis="0 0 1", extra=""):
+    limit = '<limit lower="-1" upper="1" effort="10" velocity="2"/>' if kind in ("revolute", "prismatic") else ""
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/>{limit}{extra}</joint>')
+
+
+def robot(*elements):
+    return '<?xml version="1.0"?>\n<robot name="r">\n' + "\n".join(elements) + "\n</robot>\n"
+
+
+def write(tmp_path, text, name="robot.urdf"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+# ---- refused files ------------------------------------------------------------------------------
+
+BAD = {
+    # name: (urdf, line of the element, element, text of the reason)
+    "missing_parent": (robot(link("base", None), link("arm"), joint("j1", "nowhere", "arm")),
+                       5, "joint 'j1'", "its parent link 'nowhere' does not exist"),
+    "two_parents": (robot(link("base", None), link("a"), link("b"), joint("j1", "base", "a"),
+                          joint("j2", "a", "b"), joint("j3", "b", "a")),
+                    8, "joint 'j3'", "link 'a' is already the child of joint 'j1'"),
+    "cycle": (robot(link("a"), link("b"), link("c"), joint("ja", "c", "a"), joint("jb", "a", "b"),
+                    joint("jc", "b", "c")),
+              None, "joint 'j", "the joints form a cycle"),
+    "zero_mass_with_children": (robot(link("base", None), link("a", None), link("b"), joint("j1", "base", "a"),
+                                      joint("j2", "a", "b")),
+                                4, "link 'a'", "zero mass with children"),
+    "zero_axis": (robot(link("base", None), link("a"), joint("j1", "base", "a", axis="0 0 0")),
+                  5, "joint 'j1'", "the axis [0, 0, 0] has zero length"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+@pytest.mark.parametrize("command", ["convert", "simulate", "check"])
+def test_bad_urdf_exit_2_naming_the_element(tmp_path, case, command):
+    text, line, element, reason = BAD[case]
+    write(tmp_path, text)
+    args = [command, "robot.urdf"] + (["-o", "robot.yaml"] if command == "convert" else []) + ["--quiet"]
+    r = run(*args, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    where = f"robot.urdf:{line}:" if line else "robot.urdf:"
+    assert where in r.stderr and element in r.stderr and reason in r.stderr, r.stderr
+    # Nothing written: only the URDF is in the folder.
+    assert sorted(os.listdir(tmp_path)) == ["robot.urdf"]
+
+
+def test_massless_leaf_on_a_movable_joint_is_refused(tmp_path):
+    write(tmp_path, robot(link("base", None), link("a"), link("tool", None), joint("j1", "base", "a"),
+                          joint("j2", "a", "tool")))
+    r = run("check", "robot.urdf", cwd=tmp_path)
+    assert r.returncode == 2
+    assert "link 'tool': zero mass on the continuous joint 'j2'" in r.stderr
+
+
+# ---- what the elements become ------------------------------------------------------------------
+
+
+def info(path, *extra):
+    r = run("info", path, "--json", *extra)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+def converted(tmp_path, path, *extra):
+    out = str(tmp_path / "converted.yaml")
+    r = run("convert", path, "-o", out, "--quiet", *extra)
+    assert r.returncode == 0, r.stderr
+    with open(out) as f:
+        return yaml.safe_load(f), out
+
+
+def rotation(e):
+    e0, e1, e2, e3 = e
+    return np.array([[e0 * e0 + e1 * e1 - e2 * e2 - e3 * e3, 2 * (e1 * e2 - e0 * e3), 2 * (e1 * e3 + e0 * e2)],
+                     [2 * (e1 * e2 + e0 * e3), e0 * e0 - e1 * e1 + e2 * e2 - e3 * e3, 2 * (e2 * e3 - e0 * e1)],
+                     [2 * (e1 * e3 - e0 * e2), 2 * (e2 * e3 + e0 * e1), e0 * e0 - e1 * e1 - e2 * e2 + e3 * e3]])
+
+
+def rpy_matrix(r, p, y):
+    cx, sx, cy, sy, cz, sz = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def test_inertia_rotated_to_principal_axes(tmp_path):
+    # A tensor with products in an inertial frame turned by rpy, on a link turned by the joint
+    # origin's rpy: the body's R diag(I) R^T is the tensor in world axes, and its centre of
+    # mass the inertial origin.
+    J = np.array([[0.30, 0.02, -0.05], [0.02, 0.25, 0.01], [-0.05, 0.01, 0.12]])
+    rpy_i, rpy_j = (0.3, -0.2, 0.5), (0.1, 0.4, -0.7)
+    x_i, x_j = np.array([0.1, -0.05, 0.2]), np.array([0.5, 0.0, 1.0])
+    text = robot(link("base", None),
+                 link("a", m=3.0, x=" ".join(map(str, x_i)), rpy=" ".join(map(str, rpy_i)), ixx=J[0, 0],
+                      iyy=J[1, 1], izz=J[2, 2], ixy=J[0, 1], ixz=J[0, 2], iyz=J[1, 2]),
+                 joint("j1", "base", "a", xyz=" ".join(map(str, x_j)), rpy=" ".join(map(str, rpy_j))))
+    m, _ = converted(tmp_path, write(tmp_path, text))
+    body = m["bodies"][0]
+    assert body["name"] == "a" and body["mass"] == 3.0
+    R = rotation(body["orientation"])
+    I = np.diag(body["inertia"])
+    R_wl = rpy_matrix(*rpy_j)
+    R_wi = R_wl @ rpy_matrix(*rpy_i)
+    expected = R_wi @ J @ R_wi.T
+    assert np.abs(R @ I @ R.T - expected).max() < 1e-14
+    assert np.abs(np.array(body["position"]) - (x_j + R_wl @ x_i)).max() < 1e-15
+    # The principal axes stay next to the inertial frame's (the largest diagonal entries).
+    assert np.all(np.abs(np.diag(R_wi.T @ R)) > 0.9)
+
+
+def test_joint_types_limits_and_merged_links(tmp_path):
+    text = robot(link("base", None), link("turn"), link("slide"), link("plate"), link("weld"), link("cam", None),
+                 link("free"),
+                 joint("j_rev", "base", "turn", "revolute", axis="0 1 0"),
+                 joint("j_pri", "turn", "slide", "prismatic", axis="1 0 0"),
+                 joint("j_pla", "slide", "plate", "planar", axis="0 0 1"),
+                 joint("j_fix", "plate", "weld", "fixed"),
+                 joint("j_cam", "weld", "cam", "fixed", xyz="0 0 0.1"),
+                 joint("j_flo", "weld", "free", "floating"))
+    path = write(tmp_path, text)
+    i = info(path)
+    assert i["bodies"] == ["turn", "slide", "plate", "weld", "free"]
+    assert i["joints"] == ["j_rev", "j_pri", "j_pla", "j_fix"]
+    # 1 + 1 + 3 + 0 + 6 (floating)
+    assert i["counts"]["degrees_of_freedom"] == 11
+    assert any("link 'cam' has no mass: merged into 'weld'" in n and "weld.cam" in n for n in i["notes"])
+    assert any("joint 'j_flo' (floating)" in n for n in i["notes"])
+    m, out = converted(tmp_path, path)
+    types = {j["name"]: j["type"] for j in m["joints"]}
+    assert types == {"j_rev": "revolute", "j_pri": "prismatic", "j_pla": "planar", "j_fix": "fixed"}
+    rev = next(j for j in m["joints"] if j["name"] == "j_rev")
+    assert rev["limits"] == {"lower": -1, "upper": 1, "effort": 10, "velocity": 2}
+    # The converted file is a model of its own: the same counts.
+    assert info(out)["counts"] == i["counts"]
+
+
+def test_floating_base(tmp_path):
+    text = robot(link("base", m=5.0), link("arm"), joint("j1", "base", "arm"))
+    path = write(tmp_path, text)
+    assert info(path)["counts"]["degrees_of_freedom"] == 1
+    assert info(path, "--floating-base")["counts"]["degrees_of_freedom"] == 7
+    # A massless root cannot float.
+    write(tmp_path, robot(link("base", None), link("arm"), joint("j1", "base", "arm")), "massless.urdf")
+    r = run("check", "massless.urdf", "--floating-base", cwd=tmp_path)
+    assert r.returncode == 2 and "link 'base': the root link has no mass" in r.stderr
+
+
+def test_mimic_joint_is_a_gear(tmp_path):
+    # The second joint mimics the first: q2 = 2 q1 + 0.1 along a falling motion.
+    text = robot(link("base", None), link("a", x="0.3 0 0"), link("b", x="0.2 0 0"),
+                 joint("j1", "base", "a", axis="0 1 0"),
+                 joint("j2", "a", "b", xyz="0.6 0 0", axis="0 1 0",
+                       extra='<mimic joint="j1" multiplier="2" offset="0.1"/>'))
+    path = write(tmp_path, text)
+    i = info(path)
+    assert "j2_mimic" in i["joints"] and i["counts"]["degrees_of_freedom"] == 1
+    r = run("simulate", path, "-o", str(tmp_path / "r.h5"), "--t-end", "0.5", "--quiet")
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "r.h5") as f:
+        q1, q2 = f["measures/j1_q"][:], f["measures/j2_q"][:]
+    assert abs(q2[0] - 0.1) < 1e-12 and abs(q1[0]) < 1e-12
+    assert abs(q1[-1]) > 0.3  # it fell
+    assert np.abs(q2 - (2 * q1 + 0.1)).max() < 1e-9
+
+
+def test_ur20_structure():
+    i = info(UR20)
+    assert i["name"] == "ur20"
+    assert i["bodies"] == [f"link_{k}" for k in range(1, 7)]
+    assert i["joints"] == [f"joint_{k}" for k in range(1, 7)]
+    assert i["counts"]["degrees_of_freedom"] == 6
+    assert any("link 'flange' has no mass: merged into 'link_6'" in n for n in i["notes"])
+
+
+def test_free_fall_agrees_with_the_model_written_by_hand(tmp_path):
+    # double_pendulum.yaml is double_pendulum.urdf written by hand (other marker axes, the
+    # angles as expressions): the same equations, so the runs agree to rounding (measured
+    # 2.4e-13 m over 1 s).
+    for name in ("double_pendulum.urdf", "double_pendulum.yaml"):
+        shutil.copy(os.path.join(HERE, "models", name), tmp_path)
+    runs = {}
+    for name in ("double_pendulum.urdf", "double_pendulum.yaml"):
+        out = str(tmp_path / (name.replace(".", "_") + ".h5"))
+        assert run("simulate", name, "-o", out, "--quiet", cwd=tmp_path).returncode == 0
+        with h5py.File(out) as f:
+            runs[name] = (f["q"][:], f["q_names"][:])
+    (qu, nu), (qy, ny) = runs["double_pendulum.urdf"], runs["double_pendulum.yaml"]
+    assert list(nu) == list(ny)
+    assert np.abs(qu[-1] - qu[0]).max() > 0.1  # it moved
+    assert np.abs(qu - qy).max() < 1e-10
+
+
+def test_ur20_convert_and_simulate_agree(tmp_path):
+    # The converted file (numbers with 15-17 digits, Euler parameters renormalised) against
+    # the URDF itself: the same free fall to the integrator's rounding.
+    _, out = converted(tmp_path, UR20)
+    runs = []
+    for path in (UR20, out):
+        h5 = str(tmp_path / f"run{len(runs)}.h5")
+        r = run("simulate", path, "-o", h5, "--t-end", "0.5", "--quiet")
+        assert r.returncode == 0, r.stderr
+        with h5py.File(h5) as f:
+            runs.append(f["q"][:])
+    assert np.abs(runs[0][-1] - runs[0][0]).max() > 0.1
+    assert np.abs(runs[0] - runs[1]).max() < 1e-9
