@@ -279,6 +279,20 @@ std::string DefaultResultsPath(const std::string& model_path) {
   return model_path + ".h5";
 }
 
+double ProgressReporter::Now() const {
+  if (clock_) return clock_();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string ProgressReporter::Duration(double seconds) {
+  char text[48];
+  const long s = std::lround(std::max(0.0, seconds));
+  if (s < 60) std::snprintf(text, sizeof text, "%ld s", s);
+  else if (s < 3600) std::snprintf(text, sizeof text, "%ld min %02ld s", s / 60, s % 60);
+  else std::snprintf(text, sizeof text, "%ld h %02ld min", s / 3600, (s % 3600) / 60);
+  return text;
+}
+
 void ProgressReporter::Update(double t, double t_end) {
   if (mode_ == Mode::kNone || !(t_end > 0)) return;
   const double fraction = std::clamp(t / t_end, 0.0, 1.0);
@@ -291,16 +305,22 @@ void ProgressReporter::Update(double t, double t_end) {
     }
     return;
   }
-  const auto now = std::chrono::steady_clock::now();
-  if (drawn_ && fraction < 1.0 && now - last_draw_ < std::chrono::milliseconds(100)) return;
-  last_draw_ = now;
+  const double now = Now();
+  if (start_ < 0) start_ = now;
+  if (drawn_ && fraction < 1.0 && now - last_draw_s_ < 0.1) return;
+  last_draw_s_ = now;
   drawn_ = true;
   constexpr int kWidth = 30;
   const int filled = static_cast<int>(fraction * kWidth);
   std::string bar(kWidth, ' ');
   for (int k = 0; k < filled; ++k) bar[k] = '=';
   if (filled < kWidth) bar[filled] = '>';
-  std::fprintf(out_, "\r[%s] %3.0f %%  t = %-10.6g of %g ", bar.c_str(), 100 * fraction, t, t_end);
+  const double elapsed = now - start_;
+  std::string when;
+  if (fraction >= 1.0) when = "  " + Duration(elapsed) + " in all";
+  else if (fraction >= 0.005 && elapsed >= 0.2) when = "  " + Duration(elapsed * (1 - fraction) / fraction) + " left";
+  // Trailing blanks wipe a longer text drawn before.
+  std::fprintf(out_, "\r[%s] %3.0f %%  t = %-10.6g of %g%s        ", bar.c_str(), 100 * fraction, t, t_end, when.c_str());
   std::fflush(out_);
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <cstdio>
 #include <map>
 #include <optional>
@@ -66,15 +67,24 @@ class ProgressReporter {
  public:
   enum class Mode { kNone, kBar, kLines };
   explicit ProgressReporter(Mode mode, std::FILE* out = stderr) : mode_(mode), out_(out) {}
+  // The bar shows the time left, estimated from the wall time since the first Update
+  // and the share of t_end reached (once 0.5 % and 0.2 s have passed).
   void Update(double t, double t_end);
   void Finish();  // ends the bar's line
+  // Tests: a clock (seconds) instead of std::chrono::steady_clock.
+  void set_clock(std::function<double()> seconds) { clock_ = std::move(seconds); }
+  // "42 s", "3 min 20 s", "2 h 05 min".
+  static std::string Duration(double seconds);
 
  private:
+  double Now() const;
   Mode mode_;
   std::FILE* out_;
   int next_tenth_ = 1;
   bool drawn_ = false;
-  std::chrono::steady_clock::time_point last_draw_{};
+  std::function<double()> clock_;
+  double start_ = -1;       // clock at the first Update
+  double last_draw_s_ = -1;  // clock at the last drawing
 };
 
 // What `info` prints.

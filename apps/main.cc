@@ -19,6 +19,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -28,6 +29,7 @@
 #include <vector>
 
 #include "apps/cli.h"
+#include "apps/view.h"
 #include "driver/gradient.h"
 #include "driver/optimize.h"
 #include "driver/simulation.h"
@@ -54,6 +56,7 @@ const char* kUsage =
     "                 [--method adjoint|forward|fd] [--fd-step S] [--trajectory-memory MIB]\n"
     "                 [every simulate option] [--json] [-o RESULTS.h5]\n"
     "  mbdae optimize PROBLEM.yaml [-o RESULTS.h5] [--json] [--quiet]\n"
+    "  mbdae view RESULTS.h5 [-o FILE.html]\n"
     "  mbdae --help | --version\n";
 
 const char* kHelp =
@@ -123,6 +126,10 @@ const char* kHelp =
     "One progress line per Ipopt iteration goes to stderr. Exit 0 when Ipopt solved the\n"
     "problem (or to an acceptable level), 3 otherwise (the final point and the history\n"
     "are still written).\n"
+    "\n"
+    "view: writes one self-contained HTML file (default RESULTS.html) that plays the run in a\n"
+    "browser (three.js inlined; at most 2000 rows drawn); docs/viewer.md. Exit 2 for a file\n"
+    "that is not a results file.\n"
     "\n"
     "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md).\n"
     "\n"
@@ -423,6 +430,8 @@ int Run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   using namespace mbdae;
+  // view writes an HTML page from a results file (apps/view.h).
+  if (argc >= 2 && std::strcmp(argv[1], "view") == 0) return app::RunView(argc, argv);
   try {
     return app::Run(argc, argv);
   } catch (const app::UsageError& e) {

@@ -18,6 +18,7 @@
 #include "dae/hht.h"
 #include "dae/ida.h"
 #include "dae/kinematic.h"
+#include "io/results_geometry.h"
 
 namespace mbdae::driver {
 namespace {
@@ -790,6 +791,7 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
     results = std::make_unique<io::ResultsFile>(options.results_path, run.layout);
     results->set_flush_interval(options.flush_interval);
     WriteRunAttributes(*results, run);
+    io::WriteModelGeometry(*results, model);  // /geometry: what to draw (io/results_geometry.h)
   }
 
   // The kinematic analysis's a and lambda are the solved ones already (the same

@@ -528,6 +528,43 @@ void ResultsFile::SetAttribute(const std::string& name, const std::vector<std::s
   Check(H5Awrite(attr.get(), type.get(), ptrs.data()), "write attribute " + name);
 }
 
+namespace {
+
+void WriteFixedTable(hid_t file, const std::string& dataset_path, int cols, size_t count, hid_t file_type,
+                     hid_t memory_type, const void* data) {
+  if (cols < 0 || (cols > 0 && count % static_cast<size_t>(cols) != 0))
+    throw std::runtime_error("results file: table " + dataset_path + " has " + std::to_string(count) +
+                             " values for " + std::to_string(cols) + " columns");
+  auto [parent, name] = PrepareDataset(file, dataset_path);
+  hsize_t dims[2] = {cols == 0 ? count : count / static_cast<size_t>(cols), static_cast<hsize_t>(cols)};
+  Handle space = Check(H5Screate_simple(cols == 0 ? 1 : 2, dims, nullptr), H5Sclose, "create a dataspace");
+  Handle ds = Check(H5Dcreate2(parent.get(), name.c_str(), file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT,
+                               H5P_DEFAULT),
+                    H5Dclose, "create dataset " + dataset_path);
+  if (count > 0)
+    Check(H5Dwrite(ds.get(), memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write dataset " + dataset_path);
+}
+
+}  // namespace
+
+void ResultsFile::WriteTable(const std::string& dataset_path, int cols, const std::vector<double>& values) {
+  QuietErrors quiet;
+  WriteFixedTable(impl_->file.get(), dataset_path, cols, values.size(), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
+                  values.data());
+}
+
+void ResultsFile::WriteIntegerTable(const std::string& dataset_path, int cols, const std::vector<long>& values) {
+  QuietErrors quiet;
+  std::vector<long long> v(values.begin(), values.end());
+  WriteFixedTable(impl_->file.get(), dataset_path, cols, v.size(), H5T_STD_I64LE, H5T_NATIVE_LLONG, v.data());
+}
+
+void ResultsFile::WriteStringDataset(const std::string& dataset_path, const std::vector<std::string>& values) {
+  QuietErrors quiet;
+  auto [parent, name] = PrepareDataset(impl_->file.get(), dataset_path);
+  ::mbdae::io::WriteStrings(parent.get(), name, values);
+}
+
 void ResultsFile::Flush() {
   QuietErrors quiet;
   impl_->WriteAllPending();

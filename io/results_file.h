@@ -82,6 +82,14 @@ class ResultsFile {
                          const std::vector<std::string>& values);
   void WriteGroupDataset(const std::string& path, const std::string& name,
                          const std::vector<double>& values);
+  // Added (the /geometry group, io/results_geometry.h): fixed-size datasets written
+  // once, parent groups created, replacing one of the same path: rows x cols float64
+  // (cols >= 1; 0: a 1-D dataset) or int64 from row-major values, and 1-D
+  // variable-length UTF-8 strings.
+  // Throw std::runtime_error when values.size() is not a multiple of cols.
+  void WriteTable(const std::string& dataset_path, int cols, const std::vector<double>& values);
+  void WriteIntegerTable(const std::string& dataset_path, int cols, const std::vector<long>& values);
+  void WriteStringDataset(const std::string& dataset_path, const std::vector<std::string>& values);
   void Flush();  // writes the pending rows and flushes the file
   // Added: AppendRow flushes when at least this many seconds (wall clock) passed since
   // the last flush; 0 (the default) flushes after every row. A positive value bounds

@@ -82,10 +82,21 @@ std::vector<DrawnShape> DefaultShapes(const Model& model, int b, double length_s
   const Eigen::SelfAdjointEigenSolver<Mat3> eig(0.5 * (body.inertia + body.inertia.transpose()));
   const Vec3 I = eig.eigenvalues();
   const double trace = I.sum();
+  // Capped at half the distance to the farthest marker: a cue of the inertia that does
+  // not hide the rods (planar models often give every body the same moment about each axis).
+  double reach = 0;
+  for (const Marker& m : model.markers)
+    if (m.body == b) reach = std::max(reach, m.position.norm());
+  const double largest = reach > 0 ? std::max(smallest, 0.5 * reach) : HUGE_VAL;
+  bool point = true;
   for (int k = 0; k < 3; ++k) {
     const double a2 = body.mass > 0 ? 5 * (trace - 2 * I[k]) / (2 * body.mass) : 0;
-    e.size[k] = std::max(smallest, std::sqrt(std::max(0.0, a2)));
+    const double a = std::sqrt(std::max(0.0, a2));
+    point = point && !(a > smallest);
+    e.size[k] = std::min(largest, std::max(smallest, a));
   }
+  // A point mass is an opaque sphere; a larger ellipsoid is see-through.
+  if (!point) e.color[3] = 0.35;
   Mat3 axes = eig.eigenvectors();
   if (axes.determinant() < 0) axes.col(2) = -axes.col(2);
   e.orientation = axes;
@@ -101,7 +112,7 @@ std::vector<DrawnShape> DefaultShapes(const Model& model, int b, double length_s
     rod.body = b;
     rod.color = color;
     rod.source = "default";
-    rod.size = Vec3(length_scale / 200, len, 0);
+    rod.size = Vec3(length_scale / 120, len, 0);
     rod.position = 0.5 * m.position;
     // Shape z along the rod: any rotation taking e_z to the rod's direction.
     const Vec3 z = m.position / len;

@@ -9,7 +9,8 @@ packages=(build-essential cmake pkg-config
   libgtest-dev libbenchmark-dev
   coinor-libipopt-dev liburdfdom-dev
   python3 python3-numpy python3-scipy python3-sympy python3-yaml python3-h5py
-  python3-matplotlib python3-pytest)
+  python3-matplotlib python3-pytest
+  libjs-three chromium python3-pil)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -166,6 +166,31 @@ TEST(Progress, LinesEveryTenthBarOnTerminalNothingWhenQuiet) {
   EXPECT_NE(bar.find("[==============================] 100 %"), std::string::npos) << bar;
 }
 
+TEST(Progress, BarShowsTheTimeLeft) {
+  // A clock that advances 2 s per update: at t = 0.5 of 2 (25 %) 2 s have passed since
+  // the first update, so 6 s are left; at the end 8 s in all.
+  std::FILE* f = std::tmpfile();
+  double clock = 0;
+  {
+    app::ProgressReporter p(app::ProgressReporter::Mode::kBar, f);
+    p.set_clock([&clock] { return clock; });
+    for (double t : {0.0, 0.5, 1.0, 1.5, 2.0}) {
+      p.Update(t, 2.0);
+      clock += 2;
+    }
+    p.Finish();
+  }
+  std::rewind(f);
+  std::string out;
+  for (int c; (c = std::fgetc(f)) != EOF;) out += static_cast<char>(c);
+  std::fclose(f);
+  EXPECT_NE(out.find(" 25 %  t = 0.5        of 2  6 s left"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 75 %  t = 1.5        of 2  2 s left"), std::string::npos) << out;
+  EXPECT_NE(out.find("100 %  t = 2          of 2  8 s in all"), std::string::npos) << out;
+  EXPECT_EQ(app::ProgressReporter::Duration(200), "3 min 20 s");
+  EXPECT_EQ(app::ProgressReporter::Duration(7500), "2 h 05 min");
+}
+
 TEST(Driver, OutputTimesEndExactlyAtTEnd) {
   auto t = driver::OutputTimes(1.0, 0.1);
   ASSERT_EQ(t.size(), 11u);

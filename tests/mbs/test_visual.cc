@@ -37,6 +37,9 @@ bodies:
     mass: 3
     inertia: [0, 0.25, 0.25]
     markers: {tip: {position: [0.5, 0, 0]}, end: {position: [-0.5, 0, 0]}}
+  - name: ball
+    mass: 1
+    inertia: [0.004, 0.004, 0.004]
 )";
 
 TEST(Visual, LoaderReadsShapesPosesAndColours) {
@@ -118,10 +121,12 @@ TEST(Visual, DefaultDrawingIsInertiaEllipsoidAndRods) {
   ASSERT_EQ(rod.size(), 3u);  // ellipsoid + two rods
   EXPECT_EQ(rod[0].kind, "ellipsoid");
   // Homogeneous ellipsoid with I = diag(0, 0.25, 0.25), m = 3: a_k^2 = 5 (tr I - 2 I_k) / (2 m);
-  // along x: 5 * 0.5 / 6 -> a = 0.6455; across: 5 * 0 / 6 -> clamped to L / 20.
+  // along x: 5 * 0.5 / 6 -> a = 0.6455, capped at half the farthest marker's distance
+  // (0.25); across: 5 * 0 / 6 -> raised to L / 20. See-through.
   Vec3 semi = rod[0].size;
   std::sort(semi.data(), semi.data() + 3);
-  EXPECT_NEAR(semi[2], std::sqrt(5 * 0.5 / 6), 1e-12);
+  EXPECT_NEAR(semi[2], 0.25, 1e-15);
+  EXPECT_DOUBLE_EQ(rod[0].color[3], 0.35);
   EXPECT_NEAR(semi[0], L / 20, 1e-12);
   EXPECT_NEAR(semi[1], L / 20, 1e-12);
   // The long semi-axis lies along body x.
@@ -134,8 +139,19 @@ TEST(Visual, DefaultDrawingIsInertiaEllipsoidAndRods) {
     EXPECT_LE((rod[r].orientation * Vec3::UnitZ()).cross(Vec3::UnitX()).norm(), 1e-15);
     EXPECT_NEAR(rod[r].orientation.determinant(), 1.0, 1e-14);
   }
-  // Every shape of the model: ground 1, arm 4, block 1 (geometry), rod 3 (default).
-  EXPECT_EQ(DrawnShapes(m).size(), 9u);
+  // A homogeneous ball of radius 0.1 (I = 2/5 m r^2 = 0.004, no markers: no cap) is
+  // drawn as itself: semi-axes sqrt(5 (0.012 - 0.008) / 2) = 0.1.
+  const std::vector<DrawnShape> ball = DefaultShapes(m, 3, L);
+  ASSERT_EQ(ball.size(), 1u);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(ball[0].size[k], 0.1, 1e-12);
+  // A point mass (the pendulum's bob) is an opaque sphere of L / 20.
+  Model point = LoadModelFromString("format: 1\nbodies:\n  - {name: bob, mass: 1, position: [1, 0, 0], markers: {p: {position: [-1, 0, 0]}}}\n", "p.yaml");
+  const std::vector<DrawnShape> bob = DefaultShapes(point, 0, ModelLengthScale(point));
+  EXPECT_DOUBLE_EQ(ModelLengthScale(point), 1.0);
+  for (int k = 0; k < 3; ++k) EXPECT_DOUBLE_EQ(bob[0].size[k], 0.05);
+  EXPECT_DOUBLE_EQ(bob[0].color[3], 1.0);
+  // Every shape of the model: ground 1, arm 4, block 1 (geometry), rod 3 and ball 1 (default).
+  EXPECT_EQ(DrawnShapes(m).size(), 10u);
 }
 
 TEST(Visual, FreeDynGeometryBox) {
