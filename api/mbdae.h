@@ -392,3 +392,43 @@ mbdae_status mbdae_optimization_history(const mbdae_optimization* result, double
 #endif
 
 #endif /* MBDAE_H_ */
+/* ---- Joint space (api/joint_space.cc; docs/urdf.md, "Joint space") ---------------------- */
+
+/* For a model whose joints form a tree of revolute, prismatic and fixed joints from the
+ * ground (one joint per body: a URDF import, a serial arm): its n joint coordinates, one
+ * per revolute joint (the angle of marker i about marker j's z axis, any real number) and
+ * prismatic joint (the displacement along it), in the order of the model's joints. Every
+ * function is exact, from the redundant-coordinate equations M x'' + C_x^T lambda = Q:
+ * the absolute coordinates x, x' = J q', x'' = J q'' + J' q' follow from the joint state
+ * by forward kinematics, and J^T C_x^T = 0 removes the multipliers. A model that is not
+ * such a tree (a motion or gear joint, a loop, a free body) is MBDAE_ERROR_INPUT naming
+ * the element. The model's current parameters are used; the stored state is not. */
+
+/* n, the number of joint coordinates. */
+mbdae_status mbdae_joint_count(mbdae_model* model, int* n);
+/* The name of joint coordinate k (the joint's name) into buf (size bytes, NUL-terminated;
+ * too short: MBDAE_ERROR_SIZE); *is_angle (if not NULL) 1 for a revolute joint, 0 for a
+ * prismatic one. */
+mbdae_status mbdae_joint_name(mbdae_model* model, int k, char* buf, size_t size, int* is_angle);
+/* The joint-space mass matrix M_q(q) = J^T M J: n x n, column-major (symmetric). */
+mbdae_status mbdae_joint_mass_matrix(mbdae_model* model, const double* q, int n, double* M);
+/* Inverse dynamics tau = J^T (M x'' - Q(x, x', t)): the generalized force each joint must
+ * transmit about (along) its axis for the joint accelerations qdd, with every force of the
+ * model (gravity, force elements) acting. qd and qdd may be NULL (zero). */
+mbdae_status mbdae_inverse_dynamics(mbdae_model* model, double t, const double* q, const double* qd,
+                                    const double* qdd, int n, double* tau);
+/* Bias forces b(q, qd) = tau(q, qd, 0) = C(q, qd) qd + g(q), and the gravity (applied
+ * force) vector g(q) = tau(q, 0, 0). */
+mbdae_status mbdae_joint_bias(mbdae_model* model, double t, const double* q, const double* qd, int n,
+                              double* b);
+mbdae_status mbdae_joint_gravity(mbdae_model* model, double t, const double* q, int n, double* g);
+/* The absolute coordinates and velocities of a joint state (nq = MBDAE_COORDINATES each;
+ * x and xd may be NULL, qd may be NULL): for mbdae_set_state. */
+mbdae_status mbdae_joint_to_absolute(mbdae_model* model, const double* q, const double* qd, int n, double* x,
+                                     double* xd, int nq);
+/* The joint state of absolute coordinates that satisfy the joints (e.g. mbdae_get_state's):
+ * q (angles in (-pi, pi]), qd = J^+ xd and qdd = J^+ (xdd - J' qd) (exact when x' and x''
+ * are rates the joints allow). xd, xdd, qd, qdd may be NULL. */
+mbdae_status mbdae_joint_from_absolute(mbdae_model* model, const double* x, const double* xd, const double* xdd,
+                                       int nq, double* q, double* qd, double* qdd, int n);
+

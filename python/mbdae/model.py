@@ -525,6 +525,15 @@ class Model:
     num_multipliers = nm
 
     @property
+    def joint_space(self):
+        """The joint coordinates of a tree of revolute, prismatic and fixed joints, with the
+        joint-space mass matrix, bias, gravity and inverse dynamics
+        (:class:`mbdae.joint_space.JointSpace`; a model that is not such a tree raises
+        InputError)."""
+        from .joint_space import JointSpace
+        return JointSpace(self)
+
+    @property
     def num_redundant(self):
         """Number of constraint equations set aside as redundant (assembles if needed)."""
         return self._count(_lib.REDUNDANT)
