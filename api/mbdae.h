@@ -387,11 +387,6 @@ mbdae_status mbdae_optimization_report(const mbdae_optimization* result, int jso
 mbdae_status mbdae_optimization_history(const mbdae_optimization* result, double* out, int n,
                                         int* rows);
 
-#ifdef __cplusplus
-}
-#endif
-
-#endif /* MBDAE_H_ */
 /* ---- Joint space (api/joint_space.cc; docs/urdf.md, "Joint space") ---------------------- */
 
 /* For a model whose joints form a tree of revolute, prismatic and fixed joints from the
@@ -432,3 +427,8 @@ mbdae_status mbdae_joint_to_absolute(mbdae_model* model, const double* q, const 
 mbdae_status mbdae_joint_from_absolute(mbdae_model* model, const double* x, const double* xd, const double* xdd,
                                        int nq, double* q, double* qd, double* qdd, int n);
 
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* MBDAE_H_ */
