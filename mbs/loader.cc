@@ -23,6 +23,7 @@
 #include <utility>
 
 #include "dae/hht.h"
+#include "mbs/freedyn.h"  // LoadAnyModel, for `extends:`
 #include "mbs/geometry.h"
 #include "mbs/mesh.h"
 #include "mbs/kinematics.h"
@@ -132,7 +133,12 @@ class Loader {
 
     CheckKeys(root, "model",
               {"format", "name", "gravity", "parameters", "splines", "ground", "bodies", "measures",
-               "joints", "forces", "objectives", "simulation"});
+               "joints", "forces", "objectives", "simulation", "extends", "modify"});
+    if (const YAML::Node base = root["extends"]) {
+      Extend(base);
+    } else if (root["modify"]) {
+      Fail(KeyNode(root, "modify"), "model", "'modify' changes elements of the model named by 'extends', and there is none");
+    }
     if (const YAML::Node name = root["name"]) model_.name = String(name, "model", "name");
 
     CollectMeasureNames(root["measures"]);
@@ -144,6 +150,7 @@ class Loader {
     }
     LoadGround(root["ground"]);
     LoadBodies(root["bodies"]);
+    Modify(root["modify"]);
     LoadMeasures(root["measures"]);
     LoadJoints(root["joints"]);
     ResolveReactionJoints();
@@ -743,7 +750,7 @@ class Loader {
     mbs::Marker origin;
     origin.name = "ground.O";
     origin.where = SourceLocation{file_, 0, 0};
-    model_.markers.push_back(origin);
+    if (!extended_) model_.markers.push_back(origin);  // an extended model has it
     if (!node) return;
     CheckKeys(node, "ground", {"markers", "visual"}, "ground");
     if (const YAML::Node v = node["visual"]) model_.ground_visuals = Visuals(v, "ground");
@@ -1241,6 +1248,112 @@ class Loader {
     if (out.velocity < 0) Fail(l["velocity"], element, "limits velocity must be >= 0, got " + Num(out.velocity));
     return out;
   }
+
+  // `extends: FILE` (docs/model-format.md, "Extending a model"): the model of FILE (any
+  // format: YAML, .fds, .urdf; relative to this file) is the start, and this file adds
+  // elements to it and changes named ones (`modify:`). The base's parameters (if it has
+  // any) cannot be combined with this file's yet.
+  void Extend(const YAML::Node& node) {
+    const std::string element = "model";
+    const std::string written = String(node, element, "extends");
+    std::filesystem::path path(written);
+    if (path.is_relative()) path = std::filesystem::path(file_).parent_path() / path;
+    static thread_local std::vector<std::string> chain;  // files being extended, for cycles
+    std::error_code ec;
+    const std::string key = std::filesystem::weakly_canonical(path, ec).string();
+    for (const std::string& f : chain)
+      if (f == key) Fail(node, element, "'extends': '" + written + "' extends this file again (a cycle)");
+    if (!std::filesystem::is_regular_file(path, ec)) Fail(node, element, "'extends': cannot read '" + path.string() + "'");
+    LoadOptions base_options;  // --set of the base's parameters only
+    chain.push_back(key);
+    struct Pop {
+      ~Pop() { chain.pop_back(); }
+    } pop;
+    Model base = LoadAnyModel(path.string(), base_options);
+    if (!base.parameters.empty())
+      Fail(node, element, "'extends': '" + written + "' has parameters; extending a model with parameters is not "
+                          "supported yet (convert it and edit the copy)");
+    base.file = file_;
+    base.notes.push_back("extends " + written);
+    model_ = std::move(base);
+    extended_ = true;
+    for (const Measure& m : model_.measures) symbols_.reserved.push_back(m.name);
+  }
+
+  // `modify: {bodies: {NAME: {mass, inertia, markers}}, joints: {NAME: {limits}}}`: changes
+  // of elements of the extended model, by name.
+  void Modify(const YAML::Node& node) {
+    if (!node) return;
+    const std::string element = "modify";
+    if (!node.IsMap()) Fail(node, element, "'modify' must be a mapping {bodies: ..., joints: ...}, got " + Kind(node));
+    CheckKeys(node, element, {"bodies", "joints"});
+    auto names = [](const auto& items) {
+      std::vector<std::string> out;
+      for (const auto& x : items) out.push_back(x.name);
+      return out;
+    };
+    if (const YAML::Node bodies = node["bodies"]) {
+      if (!bodies.IsMap()) Fail(bodies, element, "'bodies' must be a mapping {NAME: {mass, inertia, markers}}");
+      for (auto it = bodies.begin(); it != bodies.end(); ++it) {
+        const std::string name = String(it->first, element, "body name");
+        const int b = model_.find_body(name);
+        if (b < 0)
+          Fail(it->first, element, "no body '" + name + "' in the extended model" + Suggest(name, names(model_.bodies)) +
+                                       " (bodies: " + Join(names(model_.bodies)) + ")");
+        const std::string body_element = "body '" + name + "'";
+        const YAML::Node n = it->second;
+        if (!n.IsMap()) Fail(n, body_element, "a change must be a mapping {mass, inertia, markers}, got " + Kind(n));
+        CheckKeys(n, body_element, {"mass", "inertia", "markers"});
+        Body& body = model_.bodies[b];
+        if (const YAML::Node m = n["mass"]) {
+          body.mass = LoadTimeNumber(m, body_element, "mass");
+          if (body.mass < 0) Fail(m, body_element, "mass must be >= 0, got " + Num(body.mass));
+        }
+        if (const YAML::Node in = n["inertia"]) {
+          const std::vector<double> v = Numbers(in, body_element, "inertia", {3, 6});
+          Mat3 J = Mat3::Zero();
+          J.diagonal() << v[0], v[1], v[2];
+          if (v.size() == 6) {
+            J(0, 1) = J(1, 0) = v[3];
+            J(0, 2) = J(2, 0) = v[4];
+            J(1, 2) = J(2, 1) = v[5];
+          }
+          std::string why;
+          if (!IsPhysicalInertia(J, &why)) Fail(in, body_element, why);
+          body.inertia = J;
+        }
+        if (const YAML::Node markers = n["markers"]) {
+          if (!markers.IsMap()) Fail(markers, body_element, "'markers' must be a mapping {NAME: {position, orientation}}");
+          for (auto mk = markers.begin(); mk != markers.end(); ++mk) {
+            const std::string local = String(mk->first, body_element, "marker name");
+            const std::string marker_element = body_element + ", marker '" + local + "'";
+            CheckMarkerName(mk->first, marker_element, local);
+            const mbs::Marker m = LoadMarker(mk->second, marker_element, b, name + "." + local);
+            if (model_.find_marker(m.name) >= 0) Fail(mk->first, marker_element, "duplicate marker name");
+            model_.markers.push_back(m);
+          }
+        }
+      }
+    }
+    if (const YAML::Node joints = node["joints"]) {
+      if (!joints.IsMap()) Fail(joints, element, "'joints' must be a mapping {NAME: {limits}}");
+      for (auto it = joints.begin(); it != joints.end(); ++it) {
+        const std::string name = String(it->first, element, "joint name");
+        int j = -1;
+        for (size_t k = 0; k < model_.joints.size(); ++k)
+          if (model_.joints[k].name == name) j = static_cast<int>(k);
+        if (j < 0)
+          Fail(it->first, element, "no joint '" + name + "' in the extended model" + Suggest(name, names(model_.joints)) +
+                                       " (joints: " + Join(names(model_.joints)) + ")");
+        const std::string joint_element = "joint '" + name + "'";
+        const YAML::Node n = it->second;
+        if (!n.IsMap()) Fail(n, joint_element, "a change must be a mapping {limits}, got " + Kind(n));
+        CheckKeys(n, joint_element, {"limits"});
+        if (const YAML::Node l = n["limits"]) model_.joints[j].limits = JointLimits(l, joint_element);
+      }
+    }
+  }
+  bool extended_ = false;
 
   void LoadForces(const YAML::Node& node) {
     if (!node) return;

@@ -247,3 +247,73 @@ def test_ur20_convert_and_simulate_agree(tmp_path):
             runs.append(f["q"][:])
     assert np.abs(runs[0][-1] - runs[0][0]).max() > 0.1
     assert np.abs(runs[0] - runs[1]).max() < 1e-9
+
+
+# ---- extends: and modify: ----------------------------------------------------------------------
+
+EXTENDED = """format: 1
+extends: robot.urdf
+modify:
+  bodies:
+    arm: {mass: 2.5, markers: {tip: {position: [0.4, 0, 0]}}}
+  joints:
+    j1: {limits: {effort: 7}}
+measures:
+  - {name: q, type: rotational, i: arm.j1, j: ground.j1, axis: z}
+joints:
+  - {name: drive, type: motion, measure: q, value: "0.5 * t"}
+forces:
+  - {name: load, type: force, i: arm.tip, value: [0, 0, -1]}
+simulation: {t_end: 0.2, output_step: 0.1}
+"""
+
+
+def test_extends_adds_and_modifies_by_name(tmp_path):
+    write(tmp_path, robot(link("base", None), link("arm", x="0.2 0 0"), joint("j1", "base", "arm", axis="0 1 0")))
+    ext = write(tmp_path, EXTENDED, "driven.yaml")
+    i = info(ext)
+    assert i["joints"] == ["j1", "drive"] and i["forces"] == ["load"] and i["counts"]["degrees_of_freedom"] == 0
+    m, _ = converted(tmp_path, ext)
+    arm = m["bodies"][0]
+    assert arm["mass"] == 2.5 and arm["markers"]["tip"]["position"] == [0.4, 0, 0]
+    assert m["joints"][0]["limits"] == {"effort": 7, "velocity": 0}
+    r = run("simulate", ext, "-o", str(tmp_path / "d.h5"), "--quiet")
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "d.h5") as f:
+        assert abs(f["measures/q"][-1] - 0.1) < 1e-9
+
+
+@pytest.mark.parametrize("change,where,message", [
+    ("modify:\n  bodies:\n    armm: {mass: 1}\n", "driven.yaml:5:5:",
+     "modify: no body 'armm' in the extended model; did you mean 'arm'?"),
+    ("modify:\n  joints:\n    j2: {limits: {effort: 1}}\n", "driven.yaml:5:5:", "modify: no joint 'j2'"),
+    ("modify:\n  bodies:\n    arm: {position: [0, 0, 0]}\n", "driven.yaml:5:11:", "body 'arm': unknown key 'position'"),
+])
+def test_modify_of_a_missing_name_is_refused(tmp_path, change, where, message):
+    write(tmp_path, robot(link("base", None), link("arm", x="0.2 0 0"), joint("j1", "base", "arm", axis="0 1 0")))
+    write(tmp_path, "format: 1\nextends: robot.urdf\n" + change, "driven.yaml")
+    r = run("check", "driven.yaml", cwd=tmp_path)
+    assert r.returncode == 2 and where in r.stderr and message in r.stderr, r.stderr
+
+
+def test_extends_cycle_and_modify_without_extends(tmp_path):
+    write(tmp_path, "format: 1\nextends: b.yaml\n", "a.yaml")
+    write(tmp_path, "format: 1\nextends: a.yaml\n", "b.yaml")
+    r = run("check", "a.yaml", cwd=tmp_path)
+    assert r.returncode == 2 and "extends this file again (a cycle)" in r.stderr
+    write(tmp_path, "format: 1\nmodify: {}\n", "c.yaml")
+    r = run("check", "c.yaml", cwd=tmp_path)
+    assert r.returncode == 2 and "c.yaml:2:1: model: 'modify' changes elements of the model named by 'extends'" in r.stderr
+
+
+def test_ur20_driven_example(tmp_path):
+    # examples/urdf_arm/ur20_driven.yaml: every joint driven, kinematic analysis; the drive
+    # torques equal the inverse dynamics of the joint motion (reaction measures vs effort).
+    path = os.path.join(ROOT, "examples", "urdf_arm", "ur20_driven.yaml")
+    out = str(tmp_path / "d.h5")
+    r = run("simulate", path, "-o", out, "--quiet")
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out) as f:
+        q1 = f["measures/q1"][:]
+        assert abs(q1[-1] - 1.2) < 1e-12
+        assert np.abs(f["joints/drive_2/effort"][:]).max() > 100  # the shoulder holds the arm
