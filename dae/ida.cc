@@ -283,11 +283,17 @@ void GglRounding::Update(double cj, const std::function<void(double*)>& solve) {
   if (!(factor_ > 0)) return;
   const int n = ggl_.size();
   ggl_.RoundingLevel(cj, level_.data());
-  unsigned state = 12345u;  // the same signs at every Update
-  for (int pass = 0; pass < 2; ++pass) {
+  unsigned state = 12345u;  // the same right sides at every Update
+  for (int pass = 0; pass < 4; ++pass) {
     for (int i = 0; i < n; ++i) {
       state = state * 1664525u + 1013904223u;  // the LCG of Numerical Recipes
-      work_[i] = (state & 0x80000000u ? 1.0 : -1.0) * factor_ * level_[i];
+      // Random signs; in passes 2 and 3 also a random size in [0.5, 1): with sizes all
+      // equal, the rows of a mode that involves few rows with equal rounding levels (one
+      // loop of a chain of loops) can cancel exactly, and that mode's resolution would
+      // come out at zero.
+      const double size =
+          pass < 2 ? 1.0 : 0.5 + 0.5 * static_cast<double>((state >> 8) & 0xffffu) / 65536.0;
+      work_[i] = (state & 0x80000000u ? 1.0 : -1.0) * size * factor_ * level_[i];
     }
     solve(work_.data());
     for (int i = 0; i < n; ++i) resolution_[i] = std::max(resolution_[i], std::abs(work_[i]));

@@ -88,8 +88,11 @@ class GglResidual {
 //     as the arithmetic can tell and the correction is zero (a converged iteration). In
 //     a regular configuration this only ends an iteration that has converged anyway.
 //  2. resolution(): |J^-1 b| for right sides b at `factor` times the rounding level of
-//     each row with pseudo-random signs (the larger of two such solves, component by
-//     component), computed after every factorisation (Update): the smallest change of y
+//     each row with pseudo-random signs, in two of the four solves also with
+//     pseudo-random sizes in [0.5, 1) (the largest of the four, component by component;
+//     with equal sizes only, a mode made of a few rows of equal level, such as one loop
+//     of a chain of loops, can cancel exactly and come out at zero), computed after
+//     every factorisation (Update): the smallest change of y
 //     the arithmetic can tell from zero. Far from singular positions it is at the
 //     rounding level of y; near one it grows like 1/s^2 in the velocities. IDA's error
 //     weights add it to rtol |y| + atol.

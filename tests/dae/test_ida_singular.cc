@@ -207,6 +207,45 @@ TEST(GglRounding, RoundingLevelAndZeroCorrection) {
 
 // IDA on the crossing system: 6 passages through x = 0 in 10 s (omega = 2), every
 // tolerance runs to the end, stays on the branch y = 0 and meets x = -cos(2 t).
+// A mode that involves two rows of equal rounding level, as one loop of the A02 chain of
+// loops near a singular position: the solve answers the difference of the two rows in
+// units of their levels, x_k = b_k / level_k - b_(k+1) / level_(k+1). With right sides of
+// equal size and random signs, the two rows cancel exactly whenever their signs agree,
+// and that mode's resolution came out at zero (for this system, k = 3, 7 and 8 in both
+// solves of the former estimator: IDA then failed at A02's first passage, rtol 1e-10).
+// Every such mode must be seen (closed form: |c_k - c_(k+1)| with c = b / level, at least
+// 0.01 factor here), and a solve that answers b / level itself gives exactly the factor.
+TEST(GglRounding, ResolutionSeesModesOfRowsWithEqualLevels) {
+  testing::NonlinearSystem sys;
+  Ggl g(sys);
+  const int n = g.n;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::vector<double> y(n), yp(n);
+  for (double& e : y) e = U(rng);
+  for (double& e : yp) e = U(rng);
+  g.At(y, yp, 80.0);
+  std::vector<double> level(n);
+  g.ggl.RoundingLevel(g.cj, level.data());
+  for (int i = 0; i < n; ++i) ASSERT_GT(level[i], 0.0) << i;
+  constexpr double factor = 8.0;
+  internal::GglRounding differences(g.ggl, factor), identity(g.ggl, factor);
+  differences.Update(g.cj, [&](double* x) {
+    std::vector<double> c(n);
+    for (int i = 0; i < n; ++i) c[i] = x[i] / level[i];
+    for (int i = 0; i + 1 < n; ++i) x[i] = c[i] - c[i + 1];
+    x[n - 1] = c[n - 1];
+  });
+  identity.Update(g.cj, [&](double* x) {
+    for (int i = 0; i < n; ++i) x[i] /= level[i];
+  });
+  for (int i = 0; i < n; ++i) {
+    EXPECT_GE(differences.resolution()[i], 0.01 * factor) << i;
+    EXPECT_LE(differences.resolution()[i], 2 * factor) << i;
+    EXPECT_DOUBLE_EQ(identity.resolution()[i], factor) << i;
+  }
+}
+
 TEST(IdaSingular, CrossingSystemPassesEveryCrossing) {
   CrossingSystem sys(2.0);
   for (double tol : {1e-6, 1e-8, 1e-10}) {
