@@ -554,13 +554,73 @@ class UrdfReader {
   // ---- visual and collision geometry ---------------------------------------------------------
 
   void MakeVisuals() {
-    int visuals = 0, collisions = 0;
+    int collisions = 0;
     for (const urdf::LinkConstSharedPtr& link : order_) {
-      visuals += static_cast<int>(link->visual_array.size());
       collisions += static_cast<int>(link->collision_array.size());
+      const int o = owner_.at(link->name);
+      for (const urdf::VisualSharedPtr& v : link->visual_array) {
+        if (!v || !v->geometry) continue;
+        VisualShape s;
+        s.where = Where("link", link->name);
+        switch (v->geometry->type) {
+          case urdf::Geometry::SPHERE:
+            s.kind = VisualKind::kSphere;
+            s.radius = static_cast<const urdf::Sphere&>(*v->geometry).radius;
+            break;
+          case urdf::Geometry::BOX: {
+            const urdf::Vector3& d = static_cast<const urdf::Box&>(*v->geometry).dim;
+            s.kind = VisualKind::kBox;
+            s.size = Vec3(d.x, d.y, d.z);
+            break;
+          }
+          case urdf::Geometry::CYLINDER: {
+            const auto& c = static_cast<const urdf::Cylinder&>(*v->geometry);
+            s.kind = VisualKind::kCylinder;
+            s.radius = c.radius;
+            s.length = c.length;
+            break;
+          }
+          case urdf::Geometry::MESH: {
+            const auto& m = static_cast<const urdf::Mesh&>(*v->geometry);
+            std::string path = m.filename;
+            if (path.rfind("file://", 0) == 0) path = path.substr(7);
+            std::string ext = std::filesystem::path(path).extension().string();
+            for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+            if (path.rfind("package://", 0) == 0 || (ext != ".stl" && ext != ".obj") ||
+                !(m.scale.x == m.scale.y && m.scale.y == m.scale.z)) {
+              model_.notes.push_back("link '" + link->name + "': visual mesh '" + m.filename +
+                                     "' not drawn (only STL and OBJ files by path, with one scale for all axes)");
+              continue;
+            }
+            const std::filesystem::path resolved =
+                std::filesystem::path(path).is_absolute() ? std::filesystem::path(path)
+                                                          : std::filesystem::path(file_).parent_path() / path;
+            std::error_code ec;
+            if (!std::filesystem::is_regular_file(resolved, ec)) {
+              model_.notes.push_back("link '" + link->name + "': visual mesh '" + m.filename + "' not found (" +
+                                     resolved.string() + "): not drawn");
+              continue;
+            }
+            s.kind = VisualKind::kMesh;
+            s.mesh_file = resolved.string();
+            s.mesh_scale = m.scale.x;
+            break;
+          }
+        }
+        if (v->material) {
+          const urdf::Color& c = v->material->color;
+          s.color = {c.r, c.g, c.b, c.a};
+        }
+        const Frame world = link_frame_.at(link->name) * FromPose(v->origin);
+        const Frame b = BodyFrame(o);
+        s.position = b.R.transpose() * (world.p - b.p);
+        s.orientation = b.R.transpose() * world.R;
+        if (o < 0)
+          model_.ground_visuals.push_back(s);
+        else
+          model_.bodies[o].visuals.push_back(s);
+      }
     }
-    if (visuals > 0)
-      model_.notes.push_back(std::to_string(visuals) + " <visual> elements not represented (the model has no visual geometry yet)");
     if (collisions > 0)
       model_.notes.push_back(std::to_string(collisions) + " <collision> elements not represented (no contact)");
   }

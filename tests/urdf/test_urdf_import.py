@@ -317,3 +317,29 @@ def test_ur20_driven_example(tmp_path):
         q1 = f["measures/q1"][:]
         assert abs(q1[-1] - 1.2) < 1e-12
         assert np.abs(f["joints/drive_2/effort"][:]).max() > 100  # the shoulder holds the arm
+
+
+def test_visuals_become_the_bodies_shapes(tmp_path):
+    # A box visual turned and moved on a link whose inertial frame is moved: the shape's pose
+    # in body axes from the centre of mass; a cylinder on the root goes to the ground; an
+    # unreadable mesh is a note.
+    visual = ('<visual><origin xyz="0.1 0 0" rpy="0 0 1.5707963267948966"/><geometry><box size="0.2 0.1 0.05"/>'
+              '</geometry><material name="red"><color rgba="1 0 0 1"/></material></visual>'
+              '<visual><geometry><mesh filename="package://nowhere/arm.dae"/></geometry></visual>')
+    text = robot('<link name="base"><visual><geometry><cylinder radius="0.1" length="0.3"/></geometry></visual>'
+                 '</link>',
+                 link("arm", x="0.05 0 0").replace("</link>", visual + "</link>"),
+                 joint("j1", "base", "arm", xyz="0 0 1"))
+    path = write(tmp_path, text)
+    m, _ = converted(tmp_path, path)
+    shapes = m["bodies"][0]["visual"]
+    shapes = shapes if isinstance(shapes, list) else [shapes]
+    assert len(shapes) == 1
+    box = shapes[0]
+    assert box["shape"] == "box" and box["size"] == [0.2, 0.1, 0.05]
+    assert np.abs(np.array(box["position"]) - [0.05, 0, 0]).max() < 1e-15
+    assert box["color"][:3] == [1, 0, 0]
+    ground = m["ground"]["visual"]
+    ground = ground if isinstance(ground, list) else [ground]
+    assert ground[0]["shape"] == "cylinder" and ground[0]["radius"] == 0.1
+    assert any("arm.dae" in n for n in info(path)["notes"])
