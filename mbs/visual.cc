@@ -71,7 +71,12 @@ std::vector<DrawnShape> DefaultShapes(const Model& model, int b, double length_s
   const Body& body = model.bodies[b];
   const double* rgb = kPalette[b % (sizeof kPalette / sizeof kPalette[0])];
   const std::array<double, 4> color = {rgb[0], rgb[1], rgb[2], 1.0};
-  const double smallest = length_scale / 20;
+  // Sizes follow the body's own reach (its farthest marker) where it has markers, so
+  // that a long chain of small bodies is not drawn with the chain's scale.
+  double reach = 0;
+  for (const Marker& m : model.markers)
+    if (m.body == b) reach = std::max(reach, m.position.norm());
+  const double smallest = reach > 0 ? std::min(length_scale / 20, reach / 10) : length_scale / 20;
   std::vector<DrawnShape> out;
 
   DrawnShape e;
@@ -84,9 +89,6 @@ std::vector<DrawnShape> DefaultShapes(const Model& model, int b, double length_s
   const double trace = I.sum();
   // Capped at half the distance to the farthest marker: a cue of the inertia that does
   // not hide the rods (planar models often give every body the same moment about each axis).
-  double reach = 0;
-  for (const Marker& m : model.markers)
-    if (m.body == b) reach = std::max(reach, m.position.norm());
   const double largest = reach > 0 ? std::max(smallest, 0.5 * reach) : HUGE_VAL;
   bool point = true;
   for (int k = 0; k < 3; ++k) {
@@ -112,7 +114,7 @@ std::vector<DrawnShape> DefaultShapes(const Model& model, int b, double length_s
     rod.body = b;
     rod.color = color;
     rod.source = "default";
-    rod.size = Vec3(length_scale / 120, len, 0);
+    rod.size = Vec3(std::min(length_scale / 120, len / 25), len, 0);
     rod.position = 0.5 * m.position;
     // Shape z along the rod: any rotation taking e_z to the rod's direction.
     const Vec3 z = m.position / len;

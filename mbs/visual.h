@@ -36,10 +36,11 @@ double ModelLengthScale(const Model& model);
 
 // The default drawing of body b (used when it has no shapes): an ellipsoid with its mass
 // and inertia (the homogeneous ellipsoid of semi-axes a_k = sqrt(5 (I_1 + I_2 + I_3 -
-// 2 I_k) / (2 m)) in the principal axes, every semi-axis at least length_scale / 20, so
-// that a point mass is a small opaque sphere, and at most half the distance to the
-// farthest marker; see-through unless a point mass) and a rod from the centre of mass to
-// each of its markers (radius length_scale / 120), in one colour per body.
+// 2 I_k) / (2 m)) in the principal axes, every semi-axis at least min(length_scale / 20,
+// reach / 10) with reach the distance to the farthest marker (length_scale / 20 without
+// markers), so that a point mass is a small opaque sphere, and at most reach / 2;
+// see-through unless a point mass) and a rod from the centre of mass to each of its
+// markers (radius min(length_scale / 120, its length / 25)), in one colour per body.
 std::vector<DrawnShape> DefaultShapes(const Model& model, int b, double length_scale);
 
 // Every shape drawn: ground's shapes, then per body its shapes or DefaultShapes.

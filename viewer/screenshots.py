@@ -19,7 +19,7 @@ from chromium import Browser  # noqa: E402
 SHOTS = [
     ("pendulum", "examples/pendulum.yaml", [], 0.6, "measure angle", False),
     ("andrews", "verification/andrews/andrews.yaml", [], 0.012, "measure beta", True),
-    ("nfourbar", "verification/nfourbar/nfourbar.yaml", ["--t-end", "5"], 1.3, "measure yB0", False),
+    ("nfourbar", "verification/nfourbar/nfourbar.yaml", ["--t-end", "5"], 0.45, "measure yB0", False),
 ]
 
 

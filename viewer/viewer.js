@@ -199,8 +199,9 @@
     const across = Math.abs(size.dot(orbit.e2)), high = Math.abs(size.dot(up)), deep = Math.abs(size.dot(orbit.e1));
     const aspect = Math.max(0.2, canvas.clientWidth / Math.max(1, canvas.clientHeight));
     const tanHalf = Math.tan(camera.fov * Math.PI / 360);
-    orbit.distance = 1.15 * Math.max(high / 2 / tanHalf, across / 2 / (tanHalf * aspect)) + deep / 2 + L / 20;
-    orbit.azimuth = 0.35;
+    orbit.distance = 1.08 * Math.max(high / 2 / tanHalf, across / 2 / (tanHalf * aspect)) + deep / 2 + L / 20;
+    // Turned a little for depth; less for a wide scene, whose far end would shrink.
+    orbit.azimuth = across > 4 * Math.max(high, deep) ? 0.15 : 0.35;
     orbit.elevation = 0.25;
     // A faint grid below everything, across "up".
     if (grid) scene.remove(grid);
@@ -285,10 +286,28 @@
   });
   let plotIndex = 0;
   const plotState = {};
+  // Round tick values in [lo, hi]: multiples of 1, 2 or 5 times a power of ten, at most `most`.
+  function tickStep(lo, hi, most) {
+    const raw = (hi - lo) / most, p = Math.pow(10, Math.floor(Math.log10(raw)));
+    return [1, 2, 5, 10].map(function (m) { return m * p; }).find(function (st) { return st >= raw; });
+  }
+  function ticks(lo, hi, most) {
+    if (!(hi > lo)) return [lo];
+    const st = tickStep(lo, hi, most), out = [];
+    for (let k = Math.ceil(lo / st); k * st <= hi + 1e-9 * st; ++k) out.push(k * st);
+    return out;
+  }
+  function tickLabel(v, lo, hi, most) {
+    const st = tickStep(lo, hi, most);
+    if (Math.abs(v) < 1e-9 * st) return '0';
+    const big = Math.max(Math.abs(lo), Math.abs(hi));
+    if (big >= 1e5 || big < 1e-3) return v.toExponential(Math.max(1, Math.ceil(Math.log10(big / st))));
+    return v.toFixed(Math.max(0, -Math.floor(Math.log10(st))));
+  }
   // A number with the digits that tell the ticks of [lo, hi] apart.
-  let tickDigits = 4;
+  let tickDigits = 4, tickRange = 0;
   function niceNumber(x) {
-    if (x === 0) return '0';
+    if (x === 0 || Math.abs(x) < 1e-9 * tickRange) return '0';
     if (Math.abs(x) >= 1e5 || Math.abs(x) < 1e-3) return x.toExponential(Math.max(2, tickDigits - 1));
     return String(+x.toPrecision(tickDigits));
   }
@@ -312,6 +331,7 @@
     if (y1 - y0 < 1e-12 * Math.max(1, Math.abs(y0))) { y0 -= 0.5 * Math.max(1e-12, Math.abs(y0)) || 0.5; y1 = y0 + (y0 === 0 ? 1 : Math.abs(y0)); }
     const pad = 0.05 * (y1 - y0);
     y0 -= pad; y1 += pad;
+    tickRange = y1 - y0;
     tickDigits = Math.max(3, Math.min(12, Math.ceil(Math.log10(Math.max(Math.abs(y0), Math.abs(y1)) / (y1 - y0))) + 3));
     const x0 = D.time[0], x1 = nFrames > 1 ? D.time[nFrames - 1] : D.time[0] + 1;
     const X = function (t) { return area.left + (t - x0) / (x1 - x0) * (area.right - area.left); };
@@ -321,16 +341,11 @@
     c.strokeRect(area.left, area.top, area.right - area.left, area.bottom - area.top);
     c.fillStyle = '#333'; c.font = '11px sans-serif';
     c.textAlign = 'right'; c.textBaseline = 'middle';
-    for (let k = 0; k <= 4; ++k) {
-      const v = y0 + (y1 - y0) * k / 4;
-      c.fillText(niceNumber(v), area.left - 4, Y(v));
-    }
+    for (const v of ticks(y0, y1, 5)) c.fillText(tickLabel(v, y0, y1, 5), area.left - 4, Y(v));
     c.textAlign = 'center'; c.textBaseline = 'top';
     tickDigits = 4;
-    for (let k = 0; k <= 5; ++k) {
-      const t = x0 + (x1 - x0) * k / 5;
-      c.fillText(niceNumber(t), X(t), area.bottom + 4);
-    }
+    tickRange = x1 - x0;
+    for (const t of ticks(x0, x1, 6)) c.fillText(tickLabel(t, x0, x1, 6), X(t), area.bottom + 4);
     c.textAlign = 'left'; c.textBaseline = 'top'; c.font = '12px sans-serif';
     c.fillText(s.name + (s.unit ? ' [' + s.unit + ']' : '') + ' against t [s]', area.left, 8);
     // the curve
@@ -349,6 +364,7 @@
     c.moveTo(xc, area.top); c.lineTo(xc, area.bottom); c.stroke();
     c.fillStyle = '#d62728'; c.textAlign = 'left'; c.textBaseline = 'top';
     tickDigits = Math.max(tickDigits, 6);
+    tickRange = 0;
     c.fillText(niceNumber(s.v[frame]), Math.min(xc + 4, area.right - 80), area.top + 2);
     const r = plotCanvas.getBoundingClientRect();
     Object.assign(plotState, {name: s.name, x0: x0, x1: x1, y0: y0, y1: y1,
