@@ -221,3 +221,25 @@ def test_geometry_group_places_the_markers(pendulum):
         assert np.max(np.abs(pivot)) < 1e-8
         assert list(g["joint_names"].asstr()[:]) == ["pivot"]
         assert names[g["joint_markers"][0][0]] == "bob.pivot" and names[g["joint_markers"][0][1]] == "ground.O"
+
+
+def test_mesh_geometry_in_the_results_file_and_the_page(tmp_path):
+    """A body whose geometry is a mesh (tests/mbs/models/mesh_body.yaml: box.obj, a 2 x 1 x
+    0.5 box centred at (1, 2, 3), scaled by 0.1): /geometry holds its triangles, placed so
+    that the box is centred on the body's centre of mass; the page carries them."""
+    model = os.path.join(os.path.dirname(__file__), "..", "mbs", "models", "mesh_body.yaml")
+    r = run(["simulate", model, "-o", str(tmp_path / "m.h5"), "--t-end", "0.01", "--quiet"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "m.h5", "r") as f:
+        g = f["geometry"]
+        assert list(g["shape_kind"].asstr()[:]) == ["mesh", "mesh"]
+        assert list(g["shape_mesh"][:]) == [0, 1]
+        v = g["meshes/0/vertices"][:] + g["shape_position"][0]
+        assert np.allclose(v.min(axis=0), [-0.1, -0.05, -0.025], atol=1e-14)
+        assert np.allclose(v.max(axis=0), [0.1, 0.05, 0.025], atol=1e-14)
+        assert g["meshes/0/triangles"].shape == (12, 3)  # 6 quads, fan-triangulated
+        assert g["shape_size"][1][0] == 1.0  # the unscaled one: scale 1
+    r = run(["view", str(tmp_path / "m.h5")], tmp_path)
+    assert r.returncode == 0, r.stderr
+    page = (tmp_path / "m.html").read_text()
+    assert '"meshes":[{"v":[' in page and page.count('"kind":"mesh"') == 2
