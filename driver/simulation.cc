@@ -558,6 +558,14 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
     return dae::MakeKinematicSolver(system);
   }
   return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
+  try {  // joint coordinates in the rows when the joints form a tree (mbs/joint_space.h)
+    joint_space_ = std::make_shared<mbs::JointSpace>(model);
+    const size_t n = joint_space_->size();
+    joint_coordinates_.assign(4 * n, 0.0);
+    for (auto* v : {&joint_q_, &joint_qd_, &joint_qdd_, &joint_tau_, &joint_previous_}) v->assign(n, 0.0);
+  } catch (const std::invalid_argument&) {
+    joint_space_.reset();
+  }
 }
 
 std::vector<std::string> EffortJointNames(const mbs::Model& model) {
@@ -632,6 +640,26 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   mbs::MultibodySystem& sys = *asmb_.system;
   dae::MechanicalSystem& kept = *asmb_.kept_system;
   const double t = x.t;
+  if (joint_space_) {
+    // Angles continued from the previous row's (the turn nearest to it moved by its rate).
+    const size_t n = joint_q_.size();
+    std::vector<double> predicted(joint_previous_);
+    for (size_t k = 0; k < n; ++k) predicted[k] += (t - joint_previous_t_) * joint_qd_[k];
+    try {
+      joint_space_->RowValues(sys, t, x.q.data(), x.v.data(), a_.data(), first_ ? nullptr : predicted.data(),
+                              joint_q_.data(), joint_qd_.data(), joint_qdd_.data(), joint_tau_.data());
+    } catch (const std::runtime_error&) {
+      std::fill(joint_tau_.begin(), joint_tau_.end(), std::numeric_limits<double>::quiet_NaN());
+    }
+    for (size_t k = 0; k < n; ++k) {
+      joint_coordinates_[4 * k] = joint_q_[k];
+      joint_coordinates_[4 * k + 1] = joint_qd_[k];
+      joint_coordinates_[4 * k + 2] = joint_qdd_[k];
+      joint_coordinates_[4 * k + 3] = joint_tau_[k];
+      joint_previous_[k] = joint_q_[k];
+    }
+    joint_previous_t_ = t;
+  }
   // The row's a and lambda: solved from (t, q, v), or the integrator's.
   if (!acceleration_ || acceleration_->Solve(t, x.q.data(), x.v.data(), a_.data(), lambda_.data()) != 0) {
     if (acceleration_) ++fallbacks_;
@@ -669,6 +697,7 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
     previous_rate_[k] = rate;
   }
   for (int m = 0; m < nm_; ++m) {
+  row_.joint_coordinate_data = joint_space_ ? joint_coordinates_.data() : nullptr;
     const auto& meas = model_.measures[m];
     const double value = raw_[m];
     previous_[m] = value;
@@ -728,6 +757,10 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   row_.effort_data = efforts_.data();
   row_.force_data = forces_.data();
   row_.kinetic_energy = sys.KineticEnergy(x.q.data(), x.v.data());
+  try {  // /joints/NAME/{position,rate,acceleration,generalized_force} of a tree's joints
+    run.layout.joint_coordinates = mbs::JointSpace(model).names();
+  } catch (const std::invalid_argument&) {
+  }
   row_.potential_energy = sys.PotentialEnergy(t, x.q.data());
   row_.position_violation = pos_violation;
   row_.velocity_violation = vel_violation;

@@ -25,6 +25,7 @@
 #include "dae/ida.h"
 #include "dae/integrator.h"
 #include "io/results_file.h"
+#include "mbs/joint_space.h"
 #include "mbs/measure_kinematics.h"
 #include "mbs/model.h"
 #include "mbs/reaction.h"
@@ -286,6 +287,11 @@ class OutputRowBuilder {
   long fallbacks_ = 0;
   std::vector<int> effort_joints_, effort_rows_;  // joint, its equation in the full set
   std::vector<double> efforts_;
+  // Joint coordinates of a tree (null if the joints are not one): position, rate,
+  // acceleration, generalized force per coordinate, in row order; the previous positions.
+  std::shared_ptr<mbs::JointSpace> joint_space_;
+  std::vector<double> joint_coordinates_, joint_q_, joint_qd_, joint_qdd_, joint_tau_, joint_previous_;
+  double joint_previous_t_ = 0;
 };
 
 // Names of the joints that have an effort dataset (motion joints), in model order.

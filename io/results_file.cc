@@ -136,6 +136,7 @@ struct ResultsFile::Impl {
   std::vector<RowDataset> measures;
   std::vector<RowDataset> joints;         // 2 per joint
   std::vector<RowDataset> efforts;        // one per layout.efforts entry
+  std::vector<RowDataset> joint_coordinates;  // 4 per layout.joint_coordinates entry
   std::vector<RowDataset> forces;         // 2 per force
   RowDataset kinetic, potential, position_violation, velocity_violation;
   std::vector<double> zeros;
@@ -180,7 +181,7 @@ struct ResultsFile::Impl {
     for (RowDataset* d : {&time, &q, &v, &a, &lambda, &kinetic, &potential, &position_violation,
                           &velocity_violation})
       WritePending(*d);
-    for (auto* group : {&body_datasets, &measures, &joints, &efforts, &forces})
+    for (auto* group : {&body_datasets, &measures, &joints, &efforts, &joint_coordinates, &forces})
       for (auto& d : *group) WritePending(d);
     written = rows;
   }
@@ -204,6 +205,9 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   for (const auto& n : layout.efforts)
     if (std::find(layout.joints.begin(), layout.joints.end(), n) == layout.joints.end())
       throw std::runtime_error("results file: effort of '" + n + "', which is not a joint");
+  for (const auto& n : layout.joint_coordinates)
+    if (std::find(layout.joints.begin(), layout.joints.end(), n) == layout.joints.end())
+      throw std::runtime_error("results file: joint coordinate of '" + n + "', which is not a joint");
   for (const auto& n : layout.forces) CheckName(n, "force");
 
   m.file = Handle(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
@@ -241,6 +245,12 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
     m.efforts.push_back(CreateRowDataset(g.get(), "effort", 0, true));
+  }
+  for (const auto& name : layout.joint_coordinates) {
+    Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
+                     "open the group of joint " + name);
+    for (const char* d : {"position", "rate", "acceleration", "generalized_force"})
+      m.joint_coordinates.push_back(CreateRowDataset(g.get(), d, 0, true));
   }
   Handle forces = CreateGroup(f, "forces");
   for (const auto& name : layout.forces) {
@@ -290,6 +300,8 @@ void ResultsFile::AppendRow(const ResultsRow& row) {
       m.Append(m.joints[2 * j + k], row.joint_data ? row.joint_data + 6 * j + 3 * k : nullptr);
   for (size_t j = 0; j < m.efforts.size(); ++j)
     m.Append(m.efforts[j], row.effort_data ? row.effort_data + j : nullptr);
+  for (size_t j = 0; j < m.joint_coordinates.size(); ++j)
+    m.Append(m.joint_coordinates[j], row.joint_coordinate_data ? row.joint_coordinate_data + j : nullptr);
   for (size_t j = 0; j < m.layout.forces.size(); ++j)
     for (int k = 0; k < 2; ++k)
       m.Append(m.forces[2 * j + k], row.force_data ? row.force_data + 6 * j + 3 * k : nullptr);

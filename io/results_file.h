@@ -30,6 +30,10 @@ struct ResultsLayout {
   // Joints of `joints` that also have /joints/NAME/effort (the actuator effort of a
   // driven joint), in the order of ResultsRow::effort_data.
   std::vector<std::string> efforts;
+  // Joints of `joints` with a joint coordinate (revolute, prismatic joints of a tree:
+  // mbs/joint_space.h), /joints/NAME/{position,rate,acceleration,generalized_force}, in
+  // the order of ResultsRow::joint_coordinate_data.
+  std::vector<std::string> joint_coordinates;
   std::vector<std::string> forces;        // /forces/NAME/{force,torque}
 };
 
@@ -45,6 +49,7 @@ struct ResultsRow {
   const double* measures = nullptr;      // one per measure
   const double* joint_data = nullptr;    // 6 per joint: force(3), torque(3)
   const double* effort_data = nullptr;   // one per ResultsLayout::efforts entry
+  const double* joint_coordinate_data = nullptr;  // 4 per ResultsLayout::joint_coordinates entry
   const double* force_data = nullptr;    // 6 per force element: force(3), torque(3)
   double kinetic_energy = 0;             // /energy/kinetic
   double potential_energy = 0;           // /energy/potential

@@ -40,6 +40,10 @@ JointSpace::JointSpace(const Model& model) : model_(model) {
   std::vector<bool> used(model.joints.size(), false);
   for (size_t k = 0; k < model.joints.size(); ++k) {
     const Joint& j = model.joints[k];
+    if (j.type == JointType::kMotion || j.type == JointType::kGear) {
+      used[k] = true;  // constraints on the coordinates, not part of the tree
+      continue;
+    }
     if (j.type != JointType::kRevolute && j.type != JointType::kPrismatic && j.type != JointType::kFixed)
       throw std::invalid_argument("joint '" + j.name +
                                   "': joint space needs a tree of revolute, prismatic and fixed joints (this joint "
@@ -291,6 +295,80 @@ void Evaluate(MultibodySystem& system, double t, const double* x, const double* 
 }
 
 }  // namespace
+
+void JointSpace::RowValues(MultibodySystem& system, double t, const double* x, const double* xd, const double* xdd,
+                           const double* previous, double* q, double* qd, double* qdd, double* tau) const {
+  const int nb = static_cast<int>(model_.bodies.size()), nx = 7 * nb;
+  struct Kin {
+    Mat3 R = Mat3::Identity();
+    Vec3 p = Vec3::Zero(), v = Vec3::Zero(), a = Vec3::Zero(), w = Vec3::Zero(), alpha = Vec3::Zero();
+  };
+  std::vector<Kin> kin(nb);
+  for (int b = 0; b < nb; ++b) {
+    const Quat e(x[7 * b + 3], x[7 * b + 4], x[7 * b + 5], x[7 * b + 6]);
+    const Quat ed(xd[7 * b + 3], xd[7 * b + 4], xd[7 * b + 5], xd[7 * b + 6]);
+    const Quat edd(xdd[7 * b + 3], xdd[7 * b + 4], xdd[7 * b + 5], xdd[7 * b + 6]);
+    const Mat34 E = EMatrix(e);
+    kin[b].R = RotationMatrix(e / e.norm());
+    kin[b].p = Vec3(x[7 * b], x[7 * b + 1], x[7 * b + 2]);
+    kin[b].v = Vec3(xd[7 * b], xd[7 * b + 1], xd[7 * b + 2]);
+    kin[b].a = Vec3(xdd[7 * b], xdd[7 * b + 1], xdd[7 * b + 2]);
+    kin[b].w = 2 * E * ed;      // omega = 2 E e'
+    kin[b].alpha = 2 * E * edd; // alpha = 2 E e'' (E(e') e' = 0)
+  }
+  const Kin ground;
+  // Residual forces of the bodies: f (3) and the torque 1/2 E r_e (world), from M x'' - Q.
+  std::vector<double> mass, force;
+  Evaluate(system, t, x, xd, xdd, &mass, &force);
+  const dae::CscPattern& P = system.pattern(dae::Matrix::kMass);
+  std::vector<double> r(nx, 0.0);
+  for (int c = 0; c < P.cols; ++c)
+    for (int k = P.col_start[c]; k < P.col_start[c + 1]; ++k) r[P.row_index[k]] += mass[k] * xdd[c];
+  for (int k = 0; k < nx; ++k) r[k] -= force[k];
+  std::vector<Vec3> F(nb), N(nb);  // of the subtree of each body; N about the world origin
+  for (int b = 0; b < nb; ++b) {
+    const Quat e(x[7 * b + 3], x[7 * b + 4], x[7 * b + 5], x[7 * b + 6]);
+    F[b] = Vec3(r[7 * b], r[7 * b + 1], r[7 * b + 2]);
+    N[b] = 0.5 * EMatrix(e) * Eigen::Vector4d(r[7 * b + 3], r[7 * b + 4], r[7 * b + 5], r[7 * b + 6]) +
+           kin[b].p.cross(F[b]);
+  }
+  for (auto it = links_.rbegin(); it != links_.rend(); ++it)
+    if (it->parent >= 0) {
+      F[it->parent] += F[it->body];
+      N[it->parent] += N[it->body];
+    }
+  for (const Link& l : links_) {
+    if (l.coordinate < 0) continue;
+    const Joint& j = model_.joints[l.joint];
+    const int bi = model_.markers[j.i].body, bj = model_.markers[j.j].body;
+    const Kin& I = bi < 0 ? ground : kin[bi];
+    const Kin& J = bj < 0 ? ground : kin[bj];
+    const Mat3 R_i = I.R * l.O_i, R_j = J.R * l.O_j;
+    const Vec3 ri = I.R * l.s_i, rj = J.R * l.s_j;
+    const Vec3 pi = I.p + ri, pj = J.p + rj;
+    const Vec3 z = R_j * Vec3::UnitZ();
+    const Vec3 zd = J.w.cross(z), zdd = J.alpha.cross(z) + J.w.cross(zd);
+    const int k = l.coordinate;
+    if (l.prismatic) {
+      const Vec3 d = pi - pj;
+      const Vec3 dd = (I.v + I.w.cross(ri)) - (J.v + J.w.cross(rj));
+      const Vec3 ddd = (I.a + I.alpha.cross(ri) + I.w.cross(I.w.cross(ri))) -
+                       (J.a + J.alpha.cross(rj) + J.w.cross(J.w.cross(rj)));
+      q[k] = z.dot(d);
+      qd[k] = zd.dot(d) + z.dot(dd);
+      qdd[k] = zdd.dot(d) + 2 * zd.dot(dd) + z.dot(ddd);
+    } else {
+      const Mat3 Rz_q = R_j.transpose() * R_i * l.D.transpose();
+      double angle = std::atan2(Rz_q(1, 0), Rz_q(0, 0));
+      if (previous) angle += 2 * M_PI * std::round((previous[k] - angle) / (2 * M_PI));
+      q[k] = angle;
+      qd[k] = z.dot(I.w - J.w);
+      qdd[k] = z.dot(I.alpha - J.alpha) + zd.dot(I.w - J.w);
+    }
+    const double sigma = l.child_is_i ? 1.0 : -1.0;
+    tau[k] = l.prismatic ? sigma * z.dot(F[l.body]) : sigma * z.dot(N[l.body] - pi.cross(F[l.body]));
+  }
+}
 
 void JointSpace::MassMatrix(MultibodySystem& system, const double* q, double* M) const {
   const int n = size(), nx = 7 * static_cast<int>(model_.bodies.size());

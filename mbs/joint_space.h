@@ -69,6 +69,14 @@ class JointSpace {
   void Bias(MultibodySystem& system, double t, const double* q, const double* qd, double* b) const;
   void Gravity(MultibodySystem& system, double t, const double* q, double* g) const;
 
+  // The joint coordinates of a row of a run (absolute x, x', x'' that satisfy the joints;
+  // the results file's /joints/NAME/{position,rate,acceleration,generalized_force}): per
+  // joint from its markers (O(1) each; angles continued from `previous` when not null), and
+  // tau = J^T (M x'' - Q(x, x', t)) by one pass from the leaves (O(bodies)): what each
+  // joint transmits about (along) its axis. Outputs n each.
+  void RowValues(MultibodySystem& system, double t, const double* x, const double* xd, const double* xdd,
+                 const double* previous, double* q, double* qd, double* qdd, double* tau) const;
+
  private:
   struct Link {
     int body = -1;    // the child body

@@ -317,6 +317,31 @@ def test_ur20_driven_example(tmp_path):
         q1 = f["measures/q1"][:]
         assert abs(q1[-1] - 1.2) < 1e-12
         assert np.abs(f["joints/drive_2/effort"][:]).max() > 100  # the shoulder holds the arm
+        # Joint space in the rows: positions and rates equal the angle measures, and the
+        # generalized force of each joint the effort of its drive (measured 1.5e-11 N m of
+        # 507 N m).
+        for k in range(1, 7):
+            g = f["joints/joint_%d" % k]
+            assert np.abs(g["position"][:] - f["measures/q%d" % k][:]).max() < 1e-14
+            effort = f["joints/drive_%d/effort" % k][:]
+            assert np.abs(g["generalized_force"][:] - effort).max() < 1e-10 * max(1.0, np.abs(effort).max())
+        assert np.abs(f["joints/joint_2/rate"][:] - f["measures/w2"][:]).max() < 1e-12
+
+
+def test_joint_space_rows_of_a_fall(tmp_path):
+    # A free fall: nothing drives the joints, so they transmit nothing about their axes
+    # (measured 3e-10 N m); the angles are continuous.
+    text = robot(link("base", None), link("wheel", x="0.3 0 0"), joint("spin", "base", "wheel", axis="0 1 0"))
+    path = write(tmp_path, text)
+    out = str(tmp_path / "f.h5")
+    r = run("simulate", path, "-o", out, "--t-end", "3", "--quiet")
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out) as f:
+        g = f["joints/spin"]
+        q, qd, tau = g["position"][:], g["rate"][:], g["generalized_force"][:]
+        assert np.abs(tau).max() < 1e-8
+        assert np.all(np.abs(np.diff(q)) < 1.0)  # continuous: no jump of 2 pi
+        assert np.abs(q).max() > 2.5  # from horizontal it swings to near the other side
 
 
 def test_visuals_become_the_bodies_shapes(tmp_path):
