@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "api/session.h"
+#include "apps/cli.h"
 #include "driver/gradient.h"
 #include "mbs/loader.h"
 #include "mbs/sensitivity_parameters.h"
@@ -131,7 +132,16 @@ void ComputeGradient(mbdae_model& m, const char* method, const char* const* obje
 
   driver::GradientOptions options;
   options.model_path = m.path.empty() ? m.name : m.path;
-  options.results_path = results_path ? results_path : "";
+  // The results file as `mbdae gradient -o` writes it: checked now (not the model file),
+  // written beside its path (the forward run, then /objectives) and renamed over it once
+  // the driver is through; an exception before that removes the temporary file.
+  const std::string path = results_path ? results_path : "";
+  std::unique_ptr<ResultsTarget> target;
+  if (!path.empty()) {
+    target = std::make_unique<ResultsTarget>(path, std::vector<std::pair<std::string, std::string>>{
+                                                       {"model file", m.path}});
+    options.results_path = target->CreateTemporary();
+  }
   // fd over a parameter: the model rebuilt as mbdae_set_parameter rebuilds it (the
   // parameters set so far, then the new values; spline points set through the API
   // applied again).
@@ -160,9 +170,13 @@ void ComputeGradient(mbdae_model& m, const char* method, const char* const* obje
     throw;
   } catch (const std::runtime_error& e) {
     // The driver's other runtime errors come from the results file (created, written).
-    if (!options.results_path.empty())
-      throw ApiError(MBDAE_ERROR_IO, "results file " + options.results_path + ": " + e.what());
+    if (target) throw ApiError(MBDAE_ERROR_IO, "results file " + path + ": " + e.what());
     throw;
+  }
+  // A forward run that failed is in the file too (status "failed"), as with the program.
+  if (target && !result.forward.results_path.empty()) {
+    target->Commit();
+    result.forward.results_path = path;
   }
   if (result.status != driver::GradientResult::Status::kDone)
     throw ApiError(MBDAE_ERROR_SOLVER, "the gradient failed: " + result.failure_reason);

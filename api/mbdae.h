@@ -186,7 +186,10 @@ mbdae_status mbdae_get_output(mbdae_model* model, int row, mbdae_output what, do
  * attributes `mbdae simulate` writes (a model solved with mbdae_solve gives the program's
  * file, run times aside). `status` is "done" once t_end is stored, "failed" after a solver
  * failure, else "running" (a run a host is still stepping); the counters add up every
- * integrator of the run (set_state and failures restart it). */
+ * integrator of the run (set_state and failures restart it). As `mbdae simulate`, the file
+ * is written as PATH.PID.tmp beside `path` and renamed over it when complete (an earlier
+ * file stays whole if writing fails); a path that is the model file (by any spelling or
+ * link), an empty path or one the system refuses (its reason) is MBDAE_ERROR_IO. */
 mbdae_status mbdae_write_results(mbdae_model* model, const char* path);
 
 /* ---- Measures at the current state ----------------------------------------------------- */
@@ -272,7 +275,10 @@ mbdae_status mbdae_get_matrix(mbdae_model* model, const mbdae_block* blocks, int
  *   listed). The columns of the result are in this order.
  * results_path: NULL or "": no file; else the results file of the forward run plus, per
  *   objective, the group /objectives/NAME (attributes value, integral, terminal,
- *   gradient_names; dataset gradient), as `mbdae gradient -o` writes it.
+ *   gradient_names; dataset gradient), as `mbdae gradient -o` writes it: as PATH.PID.tmp
+ *   beside it, renamed over PATH when the driver is through (an earlier file stays whole
+ *   until then and is kept by a call that fails with an error); the model file itself
+ *   (by any spelling or link) is refused with MBDAE_ERROR_IO.
  *
  * The result is stored in the handle and read with mbdae_count / mbdae_name
  * (MBDAE_GRADIENT_OBJECTIVES: rows, MBDAE_GRADIENT_WRT: columns), mbdae_get_gradient and
@@ -328,10 +334,12 @@ mbdae_status mbdae_gradient_report(mbdae_model* model, int json, char* buf, size
 typedef struct mbdae_optimization mbdae_optimization;
 
 /* Called after every Ipopt iteration (iteration 0: the starting point) with the objective
- * and the constraint violation (Ipopt's inf_pr) of the iterate. Return 0 to go on; any
- * other value stops the optimisation (Ipopt: User_Requested_Stop; the result is then
- * "failed", with the last iterate run and written as usual). Runs on the calling thread,
- * inside mbdae_optimize: it must not call mbdae_optimize itself. */
+ * and the constraint violation (Ipopt's inf_pr) of the iterate. Return 0 to go on; a
+ * positive value stops the optimisation (Ipopt: User_Requested_Stop; the result is then
+ * "failed", with the last iterate run and written as usual); a negative value stops it
+ * and abandons the results file (nothing is written: an earlier file of that name stays
+ * as it was; the result has no results path). Runs on the calling thread, inside
+ * mbdae_optimize: it must not call mbdae_optimize itself. */
 typedef int (*mbdae_progress_callback)(int iteration, double objective,
                                        double constraint_violation, void* user_data);
 
@@ -342,6 +350,10 @@ typedef int (*mbdae_progress_callback)(int iteration, double objective,
  * Hessian. The problem's `model:` is resolved against the problem file's folder.
  * results_path: NULL or "": no file; else the run at the final point plus the group
  *   /optimization (variables, history, ...), as `mbdae optimize -o` writes it.
+ *   It is written as PATH.PID.tmp beside it and renamed over PATH at the end (an earlier
+ *   file stays whole until then; a call that fails, or a final run that could not start,
+ *   leaves it as it was); a path that is the problem file or the problem's model file
+ *   (by any spelling or link) is refused with MBDAE_ERROR_IO.
  * progress: NULL or a function called after every iteration with user_data.
  * *result (not NULL): a new result on MBDAE_OK, also when Ipopt did not converge (read
  *   its status with mbdae_optimization_report); left unchanged on an error.
@@ -350,7 +362,8 @@ typedef int (*mbdae_progress_callback)(int iteration, double objective,
  * start outside the bounds, a bad Ipopt option; the message names the problem file, line
  * and column) or in its model file (named), or a variable the gradient method cannot
  * differentiate, is MBDAE_ERROR_INPUT; a problem file that cannot be read, or a results
- * path whose folder does not exist, MBDAE_ERROR_IO; NULL problem_path or result
+ * path that cannot be written (its folder does not exist, ...: the system's reason) or
+ * is an input file, MBDAE_ERROR_IO; NULL problem_path or result
  * MBDAE_ERROR_ARGUMENT. Nothing is written then. */
 mbdae_status mbdae_optimize(const char* problem_path, const char* results_path,
                             mbdae_progress_callback progress, void* user_data,

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "api/session.h"
+#include "apps/cli.h"
 #include "dae/kinematic.h"
 #include "dae/klu_solver.h"
 #include "dae/sparse.h"
@@ -581,9 +582,12 @@ void WriteResults(const mbdae_model& m, const std::string& path) {
   summary.t_reached = m.failed ? m.t_failed : m.rows.back().t;
   summary.failure_reason = m.failure_reason;
 
+  // Written beside the path and renamed over it at the end (an earlier file stays whole
+  // until then; the model file itself is refused).
+  ResultsTarget target(path, {{"model file", m.path}});
   std::unique_ptr<io::ResultsFile> file;
   try {
-    file = std::make_unique<io::ResultsFile>(path, m.run.layout);
+    file = std::make_unique<io::ResultsFile>(target.CreateTemporary(), m.run.layout);
     file->set_flush_interval(1e30);  // one flush at the end
     driver::WriteRunAttributes(*file, m.run);
     for (const OutputRow& r : m.rows) {
@@ -608,12 +612,49 @@ void WriteResults(const mbdae_model& m, const std::string& path) {
     // program's file is while it runs.
     if (!done && !m.failed) file->SetAttribute("status", "running");
     file->Flush();
+    file.reset();  // closed before it is renamed
+  } catch (const ApiError&) {
+    throw;
   } catch (const std::runtime_error& e) {
+    throw ApiError(MBDAE_ERROR_IO, "results file " + path + ": " + e.what());
+  }
+  target.Commit();
+}
+
+}  // namespace
+
+ResultsTarget::ResultsTarget(const std::string& path,
+                             const std::vector<std::pair<std::string, std::string>>& inputs)
+    : path_(path) {
+  if (path.empty()) throw ApiError(MBDAE_ERROR_IO, "the results file's path is empty");
+  for (const auto& [what, file] : inputs)
+    if (!file.empty() && (path == file || app::SameFile(path, file)))
+      throw ApiError(MBDAE_ERROR_IO, "the results file '" + path + "' is the " + what + " '" + file +
+                                         "' itself: give the results another name");
+  try {
+    destination_ = std::make_unique<app::ResultsDestination>(path, "");
+  } catch (const app::UsageError& e) {
+    throw ApiError(MBDAE_ERROR_IO, e.what());  // "cannot write the results file 'PATH': why"
+  }
+}
+
+ResultsTarget::~ResultsTarget() = default;  // the destination removes an uncommitted file
+
+const std::string& ResultsTarget::CreateTemporary() {
+  try {
+    return destination_->CreateTemporary();
+  } catch (const app::UsageError& e) {
     throw ApiError(MBDAE_ERROR_IO, e.what());
   }
 }
 
-}  // namespace
+void ResultsTarget::Commit() {
+  try {
+    destination_->Commit();
+  } catch (const std::runtime_error& e) {
+    throw ApiError(MBDAE_ERROR_IO, e.what());
+  }
+}
 
 void EnsureAssembled(mbdae_model& m) {
   if (!m.assembly) Assemble(m);

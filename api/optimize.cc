@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "api/session.h"
+#include "apps/cli.h"
 #include "driver/optimize.h"
 #include "mbs/loader.h"
 
@@ -31,19 +32,6 @@ namespace mbdae::api {
 namespace {
 
 static_assert(MBDAE_OPTIMIZATION_HISTORY_COLUMNS == 8, "the history rows below have 8 columns");
-
-// A results path whose folder does not exist fails before anything runs (the final run
-// would otherwise fail only after the whole optimisation).
-void CheckResultsPath(const std::string& path) {
-  if (path.empty()) return;
-  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    throw ApiError(MBDAE_ERROR_IO, "results file " + path + ": is a directory");
-  if (!folder.empty() && !std::filesystem::is_directory(folder, ec))
-    throw ApiError(MBDAE_ERROR_IO, "results file " + path + ": the folder " + folder.string() +
-                                       " does not exist");
-}
 
 // Loads (a file when `text` is null, else the text named `name`) and solves; the result
 // into *out only when everything went through.
@@ -67,11 +55,25 @@ void Optimize(const char* path, const char* text, const char* name, const char* 
     }
   }
   driver::OptimizeOptions options;
-  options.results_path = results_path ? results_path : "";
-  CheckResultsPath(options.results_path);
+  // The results file as `mbdae optimize -o` writes it: checked before anything runs
+  // (neither the problem file nor its model), written beside its path (the final run,
+  // then /optimization) and renamed over it at the end; a call that fails before that,
+  // or whose final run could not start, leaves an earlier file as it was.
+  const std::string results = results_path ? results_path : "";
+  std::unique_ptr<ResultsTarget> target;
+  if (!results.empty()) {
+    target = std::make_unique<ResultsTarget>(
+        results, std::vector<std::pair<std::string, std::string>>{
+                     {"problem file", text ? std::string() : std::string(path)},
+                     {"model file of the problem", problem.model_path}});
+    options.results_path = target->CreateTemporary();
+  }
+  bool abandoned = false;  // the callback returned a negative value: nothing is written
   if (progress) {
-    options.stop = [progress, user_data](const driver::OptimizationIteration& it) {
-      return progress(it.iteration, it.objective, it.constraint_violation, user_data) != 0;
+    options.stop = [progress, user_data, &abandoned](const driver::OptimizationIteration& it) {
+      const int answer = progress(it.iteration, it.objective, it.constraint_violation, user_data);
+      if (answer < 0) abandoned = true;
+      return answer != 0;
     };
   }
   auto handle = std::make_unique<mbdae_optimization>();
@@ -83,9 +85,14 @@ void Optimize(const char* path, const char* text, const char* name, const char* 
     throw;
   } catch (const std::runtime_error& e) {
     // The driver's other runtime errors come from the results file (created, written).
-    if (!options.results_path.empty())
-      throw ApiError(MBDAE_ERROR_IO, "results file " + options.results_path + ": " + e.what());
+    if (target) throw ApiError(MBDAE_ERROR_IO, "results file " + results + ": " + e.what());
     throw;
+  }
+  if (abandoned) {
+    handle->result.final_run.results_path.clear();  // the temporary file goes with target
+  } else if (target && !handle->result.final_run.results_path.empty()) {
+    target->Commit();
+    handle->result.final_run.results_path = results;
   }
   *out = handle.release();
 }

@@ -134,6 +134,10 @@ struct mbdae_model {
   std::unique_ptr<mbdae::driver::OutputRowBuilder> row_builder;
 };
 
+namespace mbdae::app {
+class ResultsDestination;
+}  // namespace mbdae::app
+
 namespace mbdae::api {
 
 // Runs the body of an extern "C" function as every call of the API does (Call in
@@ -149,6 +153,32 @@ void EnsureAssembled(mbdae_model& m);
 // Throws (ModelError, InputError, ApiError) without touching m. In api/mbdae_api.cc.
 void Load(const mbdae_model& m, const std::map<std::string, double>& overrides,
           std::unique_ptr<mbs::Model>* model, mbs::SimulationSettings* settings);
+
+// The results file of mbdae_write_results, mbdae_gradient and mbdae_optimize, written
+// as `mbdae simulate -o` writes its own (app::ResultsDestination, apps/cli.h): the path is
+// checked before anything runs, the file is written as PATH.PID.tmp beside it and renamed
+// over PATH only by Commit(), so that an earlier file stays whole until then; the
+// destructor removes the temporary file of a call that failed before. A path that is one
+// of `inputs` ({what, file}: the model file, the problem file; by any spelling or link),
+// an empty path, and a path the system would not let us write (its reason) are refused
+// with ApiError(MBDAE_ERROR_IO) naming it; so is a temporary file that cannot be made.
+// In api/mbdae_api.cc.
+class ResultsTarget {
+ public:
+  ResultsTarget(const std::string& path, const std::vector<std::pair<std::string, std::string>>& inputs);
+  ~ResultsTarget();
+  ResultsTarget(const ResultsTarget&) = delete;
+  ResultsTarget& operator=(const ResultsTarget&) = delete;
+  const std::string& path() const { return path_; }
+  // Creates the empty temporary file and returns its name (the file to write).
+  const std::string& CreateTemporary();
+  // Renames the temporary file over the path.
+  void Commit();
+
+ private:
+  std::string path_;
+  std::unique_ptr<app::ResultsDestination> destination_;
+};
 
 // Implemented in api/gradient.cc. All throw ApiError (or the driver's InputError).
 void ComputeGradient(mbdae_model& m, const char* method, const char* const* objectives,

@@ -739,7 +739,12 @@ class Model:
                    get(_lib.OUT_BODY_POSES, 12 * nb).reshape(nb, 12))
 
     def write_results(self, path):
-        """Writes the stored rows as a results file (HDF5, docs/results-file.md)."""
+        """Writes the stored rows as a results file (HDF5, docs/results-file.md).
+
+        As ``mbdae simulate`` writes it: into ``PATH.PID.tmp`` beside `path`, renamed over
+        it when complete (an earlier file stays whole if writing fails). Raises
+        :class:`mbdae.FileError` for the model file itself (by any spelling or link) or a
+        path the system refuses (its reason), :class:`mbdae.OrderError` without rows."""
         check(lib.mbdae_write_results(self._handle(), os.fsencode(path)))
 
     # ---- measures, vectors and matrices at the current state ---------------------------
@@ -873,12 +878,16 @@ class Model:
         discrete adjoint of the run; IDA: IDAS adjoint), "forward" (direct
         differentiation; IDAS forward) or "fd" (central differences of whole runs, step
         ``options["gradient.fd_step"]`` times max(|p|, 1)). results: a path for the
-        results file of the forward run with /objectives/NAME (None: no file).
+        results file of the forward run with /objectives/NAME (None: no file), written as
+        ``mbdae gradient -o`` writes it: into ``PATH.PID.tmp`` beside it and renamed over
+        it at the end (an earlier file stays whole until then, and after an error other
+        than a failed run, whose file is written with status "failed").
 
         Runs its own simulations: the stored outputs and the current state are left as
         they were. Raises ArgumentError for an unknown objective, wrt name or method,
         InputError for what the method cannot differentiate (the message names it),
-        SolverError when a run fails.
+        SolverError when a run fails, FileError for a results path that is the model file
+        or that the system refuses (its reason).
         """
         return _gradient.compute(self, objectives, wrt, method, wrt_splines, results)
 

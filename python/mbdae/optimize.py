@@ -160,9 +160,9 @@ def _run(call, results, progress):
     def adapter(iteration, objective, violation, _user_data):
         try:
             return 1 if progress(iteration, objective, violation) is True else 0
-        except BaseException as e:  # stop Ipopt, re-raise below
+        except BaseException as e:  # stop Ipopt, abandon the results file, re-raise below
             raised.append(e)
-            return 1
+            return -1
 
     callback = _PROGRESS(adapter) if progress else _PROGRESS()
     path = None if results is None else os.fsencode(results)
@@ -190,17 +190,22 @@ def optimize(problem, results=None, progress=None):
     gradient method.
 
     ``results``: None (no file) or the path of the results file (the run at the final
-    point plus ``/optimization``). ``progress``: None; True (a line per iteration on
-    stdout); or a callable ``progress(iteration, objective, constraint_violation)``
-    called after every Ipopt iteration (iteration 0: the starting point) -- returning
-    True stops the optimisation (the result is then "failed" with ipopt_status
-    "User_Requested_Stop"), and an exception it raises stops it and is raised again here.
+    point plus ``/optimization``), written as ``mbdae optimize -o`` writes it: into
+    ``RESULTS.PID.tmp`` beside it and renamed over it at the end, so that an earlier file
+    stays whole until then and after a call that fails; the problem file and its model
+    file are refused (:class:`mbdae.FileError`). ``progress``: None; True (a line per
+    iteration on stdout); or a callable ``progress(iteration, objective,
+    constraint_violation)`` called after every Ipopt iteration (iteration 0: the
+    starting point) -- returning True stops the optimisation (the result is then
+    "failed" with ipopt_status "User_Requested_Stop", its final run written as usual),
+    and an exception it raises (also KeyboardInterrupt) stops it, abandons the results
+    file (an earlier file stays) and is raised again here.
 
     Returns an :class:`OptimizationResult`, also when Ipopt did not converge (check
     ``result.solved``). Raises :class:`mbdae.InputError` for a mistake in the problem
     file (the message names the file, line and column) or its model,
-    :class:`mbdae.FileError` for a problem file that cannot be read or a results folder
-    that does not exist.
+    :class:`mbdae.FileError` for a problem file that cannot be read or a results path that
+    cannot be written (the system's reason) or is an input file.
     """
     if not isinstance(problem, (str, bytes, os.PathLike)):
         raise TypeError("problem is the path of a problem file, not %s" % type(problem).__name__)

@@ -141,7 +141,7 @@ def test_bad_problem_file_raises_input_error_naming_file_and_line(tmp_path, chan
 def test_missing_files_raise_file_error(tmp_path):
     with pytest.raises(mbdae.FileError, match="none.yaml"):
         mbdae.optimize(tmp_path / "none.yaml")
-    with pytest.raises(mbdae.FileError, match="does not exist"):
+    with pytest.raises(mbdae.FileError, match="No such file or directory"):
         mbdae.optimize(PROBLEM, results=tmp_path / "no" / "r.h5")
 
 
