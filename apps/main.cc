@@ -131,7 +131,9 @@ const char* kHelp =
     "browser (three.js inlined; at most 2000 rows drawn); docs/viewer.md. Exit 2 for a file\n"
     "that is not a results file.\n"
     "\n"
-    "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md).\n"
+    "Every command also reads FreeDyn model files (MODEL.fds, see docs/freedyn.md) and\n"
+    "URDF robot descriptions (MODEL.urdf, docs/urdf.md: the root link fixed to the world,\n"
+    "or a free body with --floating-base).\n"
     "\n"
     "The results file is written as RESULTS.PID.tmp beside it and renamed when the run\n"
     "ends; an earlier file of that name stays whole until then. SIGTERM or SIGINT stops\n"
@@ -200,6 +202,7 @@ mbs::Model Load(const CommandLine& cl) {
   RequireReadable(cl.model_path);
   mbs::LoadOptions lo;
   lo.parameter_overrides = cl.parameter_overrides;
+  lo.urdf_floating_base = cl.floating_base;
   return mbs::LoadAnyModel(cl.model_path, lo);
 }
 
@@ -214,7 +217,6 @@ int RunInfo(const CommandLine& cl) {
   // A model whose motion is not determined is reported like `check` does (naming the
   // bodies), rather than with the singular solve it would run into.
   driver::Assembly asmb = driver::Assemble(model);
-  lo.urdf_floating_base = cl.floating_base;
   ModelInfo info = Describe(model, asmb);
   std::cout << (cl.json ? info.Json() : info.Text());
   return 0;
@@ -325,6 +327,7 @@ int RunGradient(const CommandLine& cl) {
   go.reload = [&cl](const std::map<std::string, double>& values) {
     mbs::LoadOptions lo;
     lo.parameter_overrides = cl.parameter_overrides;
+    lo.urdf_floating_base = cl.floating_base;
     for (const auto& [name, value] : values) lo.parameter_overrides[name] = value;
     return mbs::LoadAnyModel(cl.model_path, lo);
   };
@@ -339,7 +342,6 @@ int RunGradient(const CommandLine& cl) {
     RemoveTemporaryOnSignal(*destination);
   }
   driver::GradientResult r = driver::ComputeGradient(model, settings, request, go);
-    lo.urdf_floating_base = cl.floating_base;
   progress.Finish();
   if (destination) {
     destination->Commit();
