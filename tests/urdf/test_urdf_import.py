@@ -368,3 +368,39 @@ def test_visuals_become_the_bodies_shapes(tmp_path):
     ground = ground if isinstance(ground, list) else [ground]
     assert ground[0]["shape"] == "cylinder" and ground[0]["radius"] == 0.1
     assert any("arm.dae" in n for n in info(path)["notes"])
+
+
+def test_joint_rates_and_accelerations_against_closed_form(tmp_path):
+    # A revolute joint carrying a prismatic one, both driven in closed form: the rows'
+    # position, rate and acceleration against the derivatives of the driving functions
+    # (the per-joint formulas of JointSpace::RowValues; kinematic analysis, exact rows).
+    write(tmp_path, robot(link("base", None), link("arm", x="0.2 0 0"), link("slider", x="0 0 0.1"),
+                          joint("turn", "base", "arm", axis="0 0 1"),
+                          joint("slide", "arm", "slider", "prismatic", xyz="0.5 0 0", axis="1 0 0")))
+    write(tmp_path, """format: 1
+extends: robot.urdf
+measures:
+  - {name: a, type: rotational, i: arm.turn, j: ground.turn, axis: z}
+  - {name: s, type: translational, i: slider.slide, j: arm.slide, component: z}
+joints:
+  - {name: drive_a, type: motion, measure: a, value: "0.7 * sin(2 * t) + 2 * t"}
+  - {name: drive_s, type: motion, measure: s, value: "0.1 * t^2 - 0.05 * t^3"}
+simulation: {t_end: 2.0, output_step: 0.05, integrator: kinematic}
+""", "driven.yaml")
+    out = str(tmp_path / "d.h5")
+    r = run("simulate", "driven.yaml", "-o", out, "--quiet", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out) as f:
+        t = f["time"][:]
+        ja, js = f["joints/turn"], f["joints/slide"]
+        a = 0.7 * np.sin(2 * t) + 2 * t  # passes pi: the position counts turns
+        assert np.abs(ja["position"][:] - a).max() < 1e-10
+        assert np.abs(ja["rate"][:] - (1.4 * np.cos(2 * t) + 2)).max() < 1e-10
+        assert np.abs(ja["acceleration"][:] - (-2.8 * np.sin(2 * t))).max() < 1e-9
+        assert np.abs(js["position"][:] - (0.1 * t**2 - 0.05 * t**3)).max() < 1e-12
+        assert np.abs(js["rate"][:] - (0.2 * t - 0.15 * t**2)).max() < 1e-10
+        assert np.abs(js["acceleration"][:] - (0.2 - 0.3 * t)).max() < 1e-9
+        # The generalized forces are the drives' efforts.
+        for j, d in (("turn", "drive_a"), ("slide", "drive_s")):
+            e = f["joints/%s/effort" % d][:]
+            assert np.abs(f["joints/%s/generalized_force" % j][:] - e).max() < 1e-9 * max(1, np.abs(e).max())
