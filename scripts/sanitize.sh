@@ -11,7 +11,8 @@
 #
 # Environment: MBDAE_ASAN_BUILD (build directory), MBDAE_ASAN_JOBS (parallel build and
 # test jobs, default: the number of processors), MBDAE_ASAN_TARGETS (build targets;
-# default: all). See docs/development.md.
+# default: all), MBDAE_ASAN_TIMEOUT_FACTOR (the tests' time limits are multiplied by it,
+# default 3). See docs/development.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source_dir=$(pwd)
@@ -32,6 +33,30 @@ cmake -S "$source_dir" -B "$build_dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_GTEST_DISCOVER_TESTS_DISCOVERY_MODE=PRE_TEST >/dev/null
 # shellcheck disable=SC2086 # a list of target names
 cmake --build "$build_dir" -j "$jobs" ${MBDAE_ASAN_TARGETS:+--target $MBDAE_ASAN_TARGETS}
+
+# The instrumented programs are slower: every time limit of the tests (their TIMEOUT
+# properties, in the CTest files of the build tree and in the Google Test discovery
+# scripts, and the discovery limits) is multiplied by MBDAE_ASAN_TIMEOUT_FACTOR. CTest
+# has no multiplier of its own (--timeout and CTEST_TEST_TIMEOUT only set the limit of
+# tests without one); the files are generated again by every configure, so this is
+# applied after the build, to the files this run uses.
+factor=${MBDAE_ASAN_TIMEOUT_FACTOR:-3}
+find "$build_dir" \( -name CTestTestfile.cmake -o -name '*_include.cmake' \) -print0 |
+  MBDAE_FACTOR=$factor /usr/bin/python3 -c '
+import os, re, sys
+factor = float(os.environ["MBDAE_FACTOR"])
+if not factor > 0:
+    sys.exit("MBDAE_ASAN_TIMEOUT_FACTOR must be a number > 0")
+scale = lambda m: m.group(1) + "%g" % (float(m.group(2)) * factor) + m.group(3)
+for name in sys.stdin.read().split("\0"):
+    if not name:
+        continue
+    text = open(name).read()
+    new = re.sub(r"(\bTIMEOUT \x22)([0-9.]+)(\x22)", scale, text)  # CTestTestfile.cmake
+    new = re.sub(r"(\bTIMEOUT;)([0-9.]+)(\b)", scale, new)  # gtest TEST_PROPERTIES
+    new = re.sub(r"(TEST_DISCOVERY_TIMEOUT \[==\[)([0-9.]+)(\]==\])", scale, new)
+    if new != text:
+        open(name, "w").write(new)'
 
 # detect_leaks is on for every program; the Python interpreter's own allocations still
 # alive at exit are not leaks of ours (lsan-python.supp).
