@@ -558,14 +558,6 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
     return dae::MakeKinematicSolver(system);
   }
   return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
-  try {  // joint coordinates in the rows when the joints form a tree (mbs/joint_space.h)
-    joint_space_ = std::make_shared<mbs::JointSpace>(model);
-    const size_t n = joint_space_->size();
-    joint_coordinates_.assign(4 * n, 0.0);
-    for (auto* v : {&joint_q_, &joint_qd_, &joint_qdd_, &joint_tau_, &joint_previous_}) v->assign(n, 0.0);
-  } catch (const std::invalid_argument&) {
-    joint_space_.reset();
-  }
 }
 
 std::vector<std::string> EffortJointNames(const mbs::Model& model) {
@@ -623,6 +615,14 @@ OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb,
     effort_rows_.push_back(row);
   }
   efforts_.assign(effort_joints_.size(), 0.0);
+  try {  // joint coordinates in the rows when the joints form a tree (mbs/joint_space.h)
+    joint_space_ = std::make_shared<mbs::JointSpace>(model);
+    const size_t n = joint_space_->size();
+    joint_coordinates_.assign(4 * n, 0.0);
+    for (auto* v : {&joint_q_, &joint_qd_, &joint_qdd_, &joint_tau_, &joint_previous_}) v->assign(n, 0.0);
+  } catch (const std::invalid_argument&) {
+    joint_space_.reset();
+  }
   a_.assign(nq_, 0.0);
   lambda_.assign(nc_, 0.0);
   if (settings.output_accelerations == "solved")
@@ -640,26 +640,6 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   mbs::MultibodySystem& sys = *asmb_.system;
   dae::MechanicalSystem& kept = *asmb_.kept_system;
   const double t = x.t;
-  if (joint_space_) {
-    // Angles continued from the previous row's (the turn nearest to it moved by its rate).
-    const size_t n = joint_q_.size();
-    std::vector<double> predicted(joint_previous_);
-    for (size_t k = 0; k < n; ++k) predicted[k] += (t - joint_previous_t_) * joint_qd_[k];
-    try {
-      joint_space_->RowValues(sys, t, x.q.data(), x.v.data(), a_.data(), first_ ? nullptr : predicted.data(),
-                              joint_q_.data(), joint_qd_.data(), joint_qdd_.data(), joint_tau_.data());
-    } catch (const std::runtime_error&) {
-      std::fill(joint_tau_.begin(), joint_tau_.end(), std::numeric_limits<double>::quiet_NaN());
-    }
-    for (size_t k = 0; k < n; ++k) {
-      joint_coordinates_[4 * k] = joint_q_[k];
-      joint_coordinates_[4 * k + 1] = joint_qd_[k];
-      joint_coordinates_[4 * k + 2] = joint_qdd_[k];
-      joint_coordinates_[4 * k + 3] = joint_tau_[k];
-      joint_previous_[k] = joint_q_[k];
-    }
-    joint_previous_t_ = t;
-  }
   // The row's a and lambda: solved from (t, q, v), or the integrator's.
   if (!acceleration_ || acceleration_->Solve(t, x.q.data(), x.v.data(), a_.data(), lambda_.data()) != 0) {
     if (acceleration_) ++fallbacks_;
@@ -697,7 +677,6 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
     previous_rate_[k] = rate;
   }
   for (int m = 0; m < nm_; ++m) {
-  row_.joint_coordinate_data = joint_space_ ? joint_coordinates_.data() : nullptr;
     const auto& meas = model_.measures[m];
     const double value = raw_[m];
     previous_[m] = value;
@@ -718,6 +697,26 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   }
   for (size_t k = 0; k < effort_joints_.size(); ++k)
     efforts_[k] = effort_rows_[k] >= 0 ? -lambda_full_[effort_rows_[k]] : 0.0;
+  if (joint_space_) {
+    // Angles continued from the previous row's (the turn nearest to it moved by its rate).
+    const size_t n = joint_q_.size();
+    std::vector<double> predicted(joint_previous_);
+    for (size_t k = 0; k < n; ++k) predicted[k] += (t - joint_previous_t_) * joint_qd_[k];
+    try {
+      joint_space_->RowValues(sys, t, x.q.data(), x.v.data(), a_.data(), first_ ? nullptr : predicted.data(),
+                              joint_q_.data(), joint_qd_.data(), joint_qdd_.data(), joint_tau_.data());
+    } catch (const std::runtime_error&) {
+      std::fill(joint_tau_.begin(), joint_tau_.end(), std::numeric_limits<double>::quiet_NaN());
+    }
+    for (size_t k = 0; k < n; ++k) {
+      joint_coordinates_[4 * k] = joint_q_[k];
+      joint_coordinates_[4 * k + 1] = joint_qd_[k];
+      joint_coordinates_[4 * k + 2] = joint_qdd_[k];
+      joint_coordinates_[4 * k + 3] = joint_tau_[k];
+      joint_previous_[k] = joint_q_[k];
+    }
+    joint_previous_t_ = t;
+  }
   for (int f = 0; f < nf_; ++f)
     sys.ForceAction(f, t, x.q.data(), x.v.data(), forces_.data() + 6 * f,
                     forces_.data() + 6 * f + 3);
@@ -755,12 +754,9 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   row_.measures = measures_.data();
   row_.joint_data = joints_.data();
   row_.effort_data = efforts_.data();
+  row_.joint_coordinate_data = joint_space_ ? joint_coordinates_.data() : nullptr;
   row_.force_data = forces_.data();
   row_.kinetic_energy = sys.KineticEnergy(x.q.data(), x.v.data());
-  try {  // /joints/NAME/{position,rate,acceleration,generalized_force} of a tree's joints
-    run.layout.joint_coordinates = mbs::JointSpace(model).names();
-  } catch (const std::invalid_argument&) {
-  }
   row_.potential_energy = sys.PotentialEnergy(t, x.q.data());
   row_.position_violation = pos_violation;
   row_.velocity_violation = vel_violation;
@@ -818,6 +814,10 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   RunDescription run =
       DescribeRun(model, asmb, settings, options.model_path, summary.integrator_detail);
   run.layout.efforts = EffortJointNames(model);
+  try {  // /joints/NAME/{position,rate,acceleration,generalized_force} of a tree's joints
+    run.layout.joint_coordinates = mbs::JointSpace(model).names();
+  } catch (const std::invalid_argument&) {
+  }
   // Without a results path the rows are computed (violations, progress) but not stored.
   std::unique_ptr<io::ResultsFile> results;
   if (!options.results_path.empty()) {
