@@ -6,6 +6,7 @@
 //   mbdae convert MODEL.fds [-o OUT.yaml] the model in this project's format
 //   mbdae gradient MODEL.yaml [options]   dG/dp of the model's objectives
 //   mbdae optimize PROBLEM.yaml [options] optimal control / identification with Ipopt
+//   mbdae sweep STUDY.yaml [options]      parameter study / Monte Carlo on Dask (Python)
 //
 // MODEL may be a FreeDyn model file (.fds, any letter case) for every command.
 // Output: progress on stderr, the summary and `info`/`check` reports on stdout, errors
@@ -15,6 +16,8 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <climits>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -56,6 +59,8 @@ const char* kUsage =
     "                 [--method adjoint|forward|fd] [--fd-step S] [--trajectory-memory MIB]\n"
     "                 [every simulate option] [--json] [-o RESULTS.h5]\n"
     "  mbdae optimize PROBLEM.yaml [-o RESULTS.h5] [--json] [--quiet]\n"
+    "  mbdae sweep STUDY.yaml [-o STUDY.h5] [--scheduler ADDRESS] [--workers N]\n"
+    "                 [--retry-failed] [--flush-interval S] [--quiet]\n"
     "  mbdae view RESULTS.h5 [-o FILE.html]\n"
     "  mbdae --help | --version\n";
 
@@ -126,6 +131,12 @@ const char* kHelp =
     "One progress line per Ipopt iteration goes to stderr. Exit 0 when Ipopt solved the\n"
     "problem (or to an acceptable level), 3 otherwise (the final point and the history\n"
     "are still written).\n"
+    "\n"
+    "sweep: a parameter study or Monte Carlo study (STUDY.yaml: the model, parameters with\n"
+    "values or distributions, outputs), each run a task on a Dask cluster (a local one, or\n"
+    "--scheduler ADDRESS), the results in one HDF5 file; a rerun skips the runs done\n"
+    "(docs/sweeps.md; `mbdae sweep --help`). Runs in Python: needs python3 with numpy,\n"
+    "pandas, dask and distributed, and the package mbdae (built next to this program).\n"
     "\n"
     "view: writes one self-contained HTML file (default RESULTS.html) that plays the run in a\n"
     "browser (three.js inlined; at most 2000 rows drawn); docs/viewer.md. Exit 2 for a file\n"
@@ -402,6 +413,60 @@ int RunOptimize(const CommandLine& cl) {
   return 0;
 }
 
+// sweep runs the Python implementation (python/mbdae/sweep.py) with the package found
+// beside this program: <build>/python in the build tree, <prefix>/lib/mbdae/python when
+// installed (python/CMakeLists.txt). The interpreter is MBDAE_PYTHON from the environment,
+// else the one the build was configured with. Only returns when it cannot start Python.
+const char* kSweepBootstrap =
+    "import sys\n"
+    "try:\n"
+    "    from mbdae.sweep import main\n"
+    "except ImportError as e:\n"
+    "    sys.stderr.write('mbdae: error: sweep runs in Python (%s) with the package mbdae; "
+    "importing it failed: %s\\n' % (sys.executable, e))\n"
+    "    sys.exit(1)\n"
+    "sys.exit(main(sys.argv[1:]))\n";
+
+std::string ProgramFolder(const char* argv0) {
+  char path[PATH_MAX];
+  const ssize_t n = readlink("/proc/self/exe", path, sizeof path - 1);
+  std::string exe = n > 0 ? std::string(path, static_cast<size_t>(n)) : std::string(argv0);
+  const size_t slash = exe.rfind('/');
+  return slash == std::string::npos ? std::string(".") : exe.substr(0, slash);
+}
+
+int RunSweep(int argc, char** argv) {
+  const std::string folder = ProgramFolder(argv[0]);
+  const std::vector<std::string> places = {folder + "/python", folder + "/../lib/mbdae/python"};
+  std::string package;
+  for (const auto& place : places)
+    if (std::ifstream(place + "/mbdae/sweep.py")) {
+      package = place;
+      break;
+    }
+  if (package.empty()) {
+    PrintError("sweep runs in Python and needs the package mbdae, which is neither in " + places[0] +
+               " (the build tree: build the target mbdae_python) nor in " + places[1] +
+               " (an installed mbdae: cmake --install)");
+    return 1;
+  }
+  const char* from_env = std::getenv("MBDAE_PYTHON");
+  const std::string python = from_env && *from_env ? from_env : MBDAE_PYTHON_EXECUTABLE;
+  const char* old_path = std::getenv("PYTHONPATH");
+  const std::string path = package + (old_path && *old_path ? ":" + std::string(old_path) : "");
+  setenv("PYTHONPATH", path.c_str(), 1);
+  std::vector<char*> args = {const_cast<char*>(python.c_str()), const_cast<char*>("-c"),
+                             const_cast<char*>(kSweepBootstrap)};
+  for (int k = 2; k < argc; ++k) args.push_back(argv[k]);
+  args.push_back(nullptr);
+  std::fflush(nullptr);
+  execv(python.c_str(), args.data());
+  PrintError("sweep runs in Python: cannot run " + python + " (" + std::strerror(errno) +
+             "); install python3 (Debian: apt-get install python3 python3-numpy python3-pandas "
+             "python3-dask python3-distributed) or name an interpreter in MBDAE_PYTHON");
+  return 1;
+}
+
 int Run(int argc, char** argv) {
   CommandLine cl = ParseCommandLine(std::vector<std::string>(argv + 1, argv + argc));
   if (cl.help) {
@@ -432,6 +497,8 @@ int Run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   using namespace mbdae;
+  // sweep is a Python program; its command line is its own (mbdae sweep --help).
+  if (argc >= 2 && std::strcmp(argv[1], "sweep") == 0) return app::RunSweep(argc, argv);
   // view writes an HTML page from a results file (apps/view.h).
   if (argc >= 2 && std::strcmp(argv[1], "view") == 0) return app::RunView(argc, argv);
   try {

@@ -16,7 +16,9 @@ Gradients of the model's objectives (``objectives:`` of the model file) with res
 parameters and spline ordinates: ``m.gradient(wrt=["k"], method="adjoint")``; as a
 function for ``scipy.optimize.minimize``: ``f = m.objective_function("G", ["k"])``,
 ``minimize(f, f.x0, jac=f.jac)``. A problem file solved with Ipopt as ``mbdae optimize``
-does: ``r = mbdae.optimize("problem.yaml")``, ``r.objective``, ``r.variables``.
+does: ``r = mbdae.optimize("problem.yaml")``, ``r.objective``, ``r.variables``. Many runs
+on Dask (a parameter grid or Monte Carlo samples, one row per run in a pandas DataFrame):
+``mbdae.sweep("model.yaml", {"k": [1, 2], "c": [0.1, 0.2]}, ["objectives", "final:x"])``.
 
 The library libmbdae.so is found through the environment variable MBDAE_LIBRARY, next to
 this package, or in the build tree of a source checkout (see :data:`library_path`).
@@ -28,6 +30,7 @@ from .errors import (ArgumentError, Error, FileError, InputError, InternalError,
 from .gradient import METHODS, Gradient, ObjectiveFunction
 from .model import MATRICES, OPTIONS, VECTORS, Model, Row, State
 from .optimize import HISTORY_COLUMNS, OptimizationResult, optimize, optimize_string
+from .sweep import StudyError, read_sweep, sweep
 
 __version__ = _lib.lib.mbdae_version().decode()
 #: The path of the loaded libmbdae.so.
@@ -38,5 +41,6 @@ api_version = _lib.lib.mbdae_api_version()
 __all__ = ["Model", "State", "Row", "Error", "InputError", "ArgumentError", "SizeError",
            "OrderError", "SolverError", "FileError", "IOError_", "InternalError", "VECTORS",
            "MATRICES", "OPTIONS", "METHODS", "Gradient", "ObjectiveFunction", "optimize",
-           "optimize_string", "OptimizationResult", "HISTORY_COLUMNS", "library_path",
+           "optimize_string", "OptimizationResult", "HISTORY_COLUMNS", "sweep", "read_sweep",
+           "StudyError", "library_path",
            "api_version", "__version__"]
