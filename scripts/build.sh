@@ -9,7 +9,7 @@ packages=(build-essential cmake pkg-config
   libgtest-dev libbenchmark-dev
   coinor-libipopt-dev liburdfdom-dev
   python3 python3-numpy python3-scipy python3-sympy python3-yaml python3-h5py
-  python3-matplotlib python3-pytest
+  python3-matplotlib python3-pytest python3-pandas python3-dask python3-distributed
   libjs-three chromium python3-pil)
 
 missing=()
