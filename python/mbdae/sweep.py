@@ -179,6 +179,11 @@ def _history(model, name):
     return model.outputs.q[:, model.coordinates.index(name)]
 
 
+def _run_batch(spec, values):
+    """Runs one after another in one task: a list of :func:`_run` results."""
+    return [_run(spec, v) for v in values]
+
+
 def _run(spec, values):
     """One run: returns {"outputs": {column: value}, "status", "message", "wall_time",
     "worker"}. Never raises for a failure of the run itself."""
@@ -508,10 +513,10 @@ def _connect(client, workers=None):
         yield client
 
 
-def _execute(plan, indices, client, retries=1, workers=None):
+def _execute(plan, indices, client, retries=1, workers=None, batch=1):
     """Runs `indices` of `plan` and yields (index, result) as runs finish. client:
     None (a LocalCluster of `workers` processes, default one per core), "serial" (here,
-    one after another), an address or a dask.distributed.Client."""
+    one after another), an address or a dask.distributed.Client. batch: runs per task."""
     indices = list(indices)
     if client == "serial":
         for i in indices:
@@ -522,24 +527,27 @@ def _execute(plan, indices, client, retries=1, workers=None):
 
         token = hashlib.sha256(("%s %f %d" % (plan.spec.sha256, time.time(), os.getpid()))
                                .encode()).hexdigest()[:10]
-        items = [plan.values[i] for i in indices]
-        keys = ["mbdae-run-%s-%d" % (token, i) for i in indices]
-        futures = c.map(_run, [plan.spec] * len(indices), items, key=keys, retries=retries,
+        batch = max(1, int(batch))
+        chunks = [indices[k:k + batch] for k in range(0, len(indices), batch)]
+        keys = ["mbdae-runs-%s-%d" % (token, chunk[0]) for chunk in chunks]
+        futures = c.map(_run_batch, [plan.spec] * len(chunks),
+                        [plan.values[chunk] for chunk in chunks], key=keys, retries=retries,
                         pure=False)
-        index = {f.key: i for f, i in zip(futures, indices)}
+        index = {f.key: chunk for f, chunk in zip(futures, chunks)}
         finished = as_completed(futures)
         del futures  # as_completed holds them until they are handed out
         for future in finished:
-            i = index.pop(future.key)
+            chunk = index.pop(future.key)
             try:
-                result = future.result()
+                results = future.result()
             except Exception as e:  # the task itself failed: its workers died too often
-                result = {"outputs": {}, "status": "failed",
-                          "message": "%s: %s" % (type(e).__name__, e), "wall_time": math.nan,
-                          "worker": ""}
+                results = [{"outputs": {}, "status": "failed",
+                            "message": "%s: %s" % (type(e).__name__, e),
+                            "wall_time": math.nan, "worker": ""}] * len(chunk)
             future.release()  # nothing to recompute if its worker dies later
             del future
-            yield i, result
+            for i, result in zip(chunk, results):
+                yield i, result
 
 
 def _new_table(plan):
@@ -630,7 +638,8 @@ class _Progress:
 
 
 def sweep(model, parameters=None, outputs=("objectives",), client=None, *, options=None,
-          wrt=None, method="adjoint", retries=1, workers=None, progress=False, on_result=None):
+          wrt=None, method="adjoint", retries=1, workers=None, batch=1, progress=False,
+          on_result=None):
     """Runs `model` once per point of `parameters` on Dask and returns a pandas DataFrame,
     one row per run (index ``run``).
 
@@ -654,7 +663,9 @@ def sweep(model, parameters=None, outputs=("objectives",), client=None, *, optio
     ``dask.distributed.Client`` uses that cluster; "serial" runs here, one after another.
     options: simulation settings for every run (the keys of :data:`mbdae.OPTIONS`).
     retries: re-submissions of a task that raised outside the run (a run's own failure is a
-    result, not retried). progress: True for a bar (a terminal) or lines on stderr.
+    result, not retried). batch: runs per task (one after another on the worker; more
+    than 1 spreads Dask's cost per task over several short runs, results then come back
+    a batch at a time). progress: True for a bar (a terminal) or lines on stderr.
     on_result: called as ``on_result(run, row)`` in this process as each run finishes
     (row: dict with the outputs, status, message, wall_time, worker).
 
@@ -670,7 +681,7 @@ def sweep(model, parameters=None, outputs=("objectives",), client=None, *, optio
     bar = _Progress(plan.runs, mode="auto" if progress else None)
     done = failed = 0
     try:
-        for i, result in _execute(plan, range(plan.runs), client, retries, workers):
+        for i, result in _execute(plan, range(plan.runs), client, retries, workers, batch):
             _store(plan, table, i, result)
             done += 1
             failed += result["status"] != "done"
