@@ -1,10 +1,10 @@
 #include "driver/simulation.h"
 
 #include "sensitivities/model_objectives.h"
+#include "driver/determinacy.h"
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
-#include <Eigen/SparseQR>
 
 #include <algorithm>
 #include <cassert>
@@ -200,84 +200,18 @@ std::string Assembly::Report() const {
 std::vector<std::string> UndeterminedBodies(const mbs::Model& model, dae::MechanicalSystem& system,
                                             const dae::State& x, double tolerance,
                                             bool* singular) {
-  const int nq = system.num_coordinates();
-  const int nc = system.num_constraints();
-  const int n = nq + nc;
-  const dae::CscPattern& pm = system.pattern(dae::Matrix::kMass);
-  const dae::CscPattern& pc = system.pattern(dae::Matrix::kConstraintDq);
-  std::vector<double> mass(pm.nnz()), cq(pc.nnz());
-  dae::EvalInput in;
-  in.t = x.t;
-  in.q = x.q.data();
-  in.v = x.v.data();
-  in.a = x.a.data();
-  dae::EvalOutput out;
-  out[dae::Matrix::kMass] = mass.data();
-  out[dae::Matrix::kConstraintDq] = cq.data();
-  if (system.Evaluate(in, out) != 0)
-    throw InputError(std::string("cannot evaluate the model at the assembled state: ") +
-                     system.last_error());
-
-  std::vector<Eigen::Triplet<double>> entries;
-  for (int c = 0; c < pm.cols; ++c)
-    for (int k = pm.col_start[c]; k < pm.col_start[c + 1]; ++k)
-      entries.emplace_back(pm.row_index[k], c, mass[k]);
-  for (int c = 0; c < pc.cols; ++c)
-    for (int k = pc.col_start[c]; k < pc.col_start[c + 1]; ++k) {
-      entries.emplace_back(nq + pc.row_index[k], c, cq[k]);
-      entries.emplace_back(c, nq + pc.row_index[k], cq[k]);
-    }
-  Eigen::SparseMatrix<double> K(n, n);
-  K.setFromTriplets(entries.begin(), entries.end());
-  // Symmetric equilibration (Ruiz): rows and columns scaled by 1/sqrt(max |K_ij|), so
-  // that the rank decision does not depend on units.
-  Eigen::VectorXd d = Eigen::VectorXd::Ones(n);
-  for (int it = 0; it < 10; ++it) {
-    Eigen::VectorXd rmax = Eigen::VectorXd::Zero(n);
-    for (int c = 0; c < K.outerSize(); ++c)
-      for (Eigen::SparseMatrix<double>::InnerIterator i(K, c); i; ++i)
-        rmax[i.row()] = std::max(rmax[i.row()], std::abs(i.value()));
-    Eigen::VectorXd s(n);
-    for (int i = 0; i < n; ++i) s[i] = rmax[i] > 0 ? 1.0 / std::sqrt(rmax[i]) : 1.0;
-    for (int c = 0; c < K.outerSize(); ++c)
-      for (Eigen::SparseMatrix<double>::InnerIterator i(K, c); i; ++i)
-        i.valueRef() *= s[i.row()] * s[c];
-    d = d.cwiseProduct(s);
+  DeterminacyOptions options;
+  options.tolerance = tolerance;
+  // The full system may hold dependent equations (which make the matrix singular too);
+  // a KeepConstraints view holds the independent ones only.
+  options.check_constraint_rank = dynamic_cast<mbs::MultibodySystem*>(&system) != nullptr;
+  try {
+    DeterminacyResult r = AnalyseDeterminacy(model, system, x, options);
+    *singular = r.singular;
+    return r.bodies;
+  } catch (const std::runtime_error& e) {
+    throw InputError(e.what());
   }
-
-  std::set<int> bodies;
-  *singular = false;
-  if (n <= 1500) {
-    Eigen::MatrixXd dense = K.toDense();
-    Eigen::FullPivLU<Eigen::MatrixXd> lu(dense);
-    lu.setThreshold(tolerance);
-    if (lu.rank() == n) return {};
-    *singular = true;
-    Eigen::MatrixXd kernel = lu.kernel();
-    for (int c = 0; c < kernel.cols(); ++c) {
-      // Back to unscaled coordinates, then look at the coordinate part.
-      Eigen::VectorXd z = d.cwiseProduct(kernel.col(c));
-      const double zmax = z.head(nq).cwiseAbs().maxCoeff();
-      if (zmax == 0) continue;
-      for (int i = 0; i < nq; ++i)
-        if (std::abs(z[i]) > 1e-6 * zmax) bodies.insert(i / 7);
-    }
-  } else {
-    Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr;
-    K.makeCompressed();
-    qr.setPivotThreshold(tolerance);
-    qr.compute(K);
-    if (qr.info() == Eigen::Success && qr.rank() == n) return {};
-    *singular = true;
-    for (size_t b = 0; b < model.bodies.size(); ++b) {
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(model.bodies[b].inertia);
-      if (model.bodies[b].mass <= 0 || eig.eigenvalues().minCoeff() <= 0) bodies.insert(b);
-    }
-  }
-  std::vector<std::string> names;
-  for (int b : bodies)
-    if (b < static_cast<int>(model.bodies.size())) names.push_back(model.bodies[b].name);
-  return names;
 }
 
 namespace {
@@ -379,7 +313,16 @@ Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options) {
         UndeterminedBodies(model, *r.kept_system, r.x0, options.singularity_tolerance, &singular);
     if (singular) ThrowUndetermined(model, bodies);
   }
-  consistency.elimination_order.clear();  // the kept equations are independent
+  // The kept equations are independent: the order decides no redundancy here, only the
+  // fill of the QR (normalisations first, as above, keeps a chain's factor linear).
+  {
+    std::vector<int> position(nc, -1);
+    for (size_t k = 0; k < r.kept.size(); ++k) position[r.kept[k]] = static_cast<int>(k);
+    std::vector<int> order;
+    for (int e : consistency.elimination_order)
+      if (position[e] >= 0) order.push_back(position[e]);
+    consistency.elimination_order = std::move(order);
+  }
   dae::ConsistencyReport second = dae::MakeConsistent(*r.kept_system, r.x0, consistency);
   if (!second.ok)
     throw InputError(Prefix(model) + "the model cannot be assembled: " + second.message);

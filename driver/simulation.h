@@ -116,8 +116,12 @@ struct AssemblyOptions {
 Assembly Assemble(const mbs::Model& model, const AssemblyOptions& options = {});
 
 // Determinacy: if [M C_q^T; C_q 0] of `system` at x is singular, returns the names of the
-// bodies whose coordinates appear in its null space (or, when the matrix is too large for
-// that analysis, the bodies with zero mass or a singular inertia); empty if regular.
+// bodies whose coordinates appear in its null space (or, for a group of more than 200
+// connected bodies without positive mass and inertia, the group's bodies with zero mass
+// or a singular inertia); empty if regular. Linear in the number of bodies
+// (driver/determinacy.h: only bodies without a positive mass and inertia are tested
+// numerically). When `system` is a mbs::MultibodySystem (all equations) dependent
+// constraint equations make it singular too; a KeepConstraints view has none.
 std::vector<std::string> UndeterminedBodies(const mbs::Model& model, dae::MechanicalSystem& system,
                                             const dae::State& x, double tolerance,
                                             bool* singular);

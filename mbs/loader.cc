@@ -20,6 +20,7 @@
 #include <memory>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 #include <utility>
 
 #include "dae/hht.h"
@@ -485,10 +486,37 @@ class Loader {
     }
   }
 
+  // The index of the first item named `name` (-1: none), as Model::find_marker: the
+  // vectors only grow while loading, so the items appended since the last call are
+  // added to the index; an entry changed in place is caught and the index rebuilt.
+  template <typename T>
+  static int FindIndexed(const std::vector<T>& items, std::unordered_map<std::string, int>& index,
+                         size_t& indexed, const std::string& name) {
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      if (indexed > items.size()) {
+        index.clear();
+        indexed = 0;
+      }
+      for (; indexed < items.size(); ++indexed) index.emplace(items[indexed].name, static_cast<int>(indexed));
+      const auto it = index.find(name);
+      if (it == index.end()) return -1;
+      if (items[it->second].name == name) return it->second;
+      index.clear();
+      indexed = 0;
+    }
+    return -1;
+  }
+  int FindMarker(const std::string& name) const {
+    return FindIndexed(model_.markers, marker_index_, markers_indexed_, name);
+  }
+  int FindBody(const std::string& name) const {
+    return FindIndexed(model_.bodies, body_index_, bodies_indexed_, name);
+  }
+
   // Marker by full name "BODY.MARKER" / "ground.MARKER".
   int Marker(const YAML::Node& node, const std::string& element, const std::string& key) const {
     const std::string name = String(node, element, key);
-    const int index = model_.find_marker(name);
+    const int index = FindMarker(name);
     if (index >= 0) return index;
     const size_t dot = name.find('.');
     if (dot == std::string::npos) {
@@ -498,7 +526,7 @@ class Loader {
     const std::string body = name.substr(0, dot);
     std::vector<std::string> bodies{"ground"};
     for (const Body& b : model_.bodies) bodies.push_back(b.name);
-    const int b = body == "ground" ? -1 : model_.find_body(body);
+    const int b = body == "ground" ? -1 : FindBody(body);
     if (body != "ground" && b < 0) {
       Fail(node, element, "'" + key + "': unknown body '" + body + "' in marker '" + name + "'" + Suggest(body, bodies) +
                               " (bodies: " + Join(bodies) + ")");
@@ -766,7 +794,7 @@ class Loader {
         CheckImplicit(it->second, m, element, "the world origin with world axes");
         continue;
       }
-      if (model_.find_marker(m.name) >= 0) Fail(it->first, element, "duplicate marker name");
+      if (FindMarker(m.name) >= 0) Fail(it->first, element, "duplicate marker name");
       model_.markers.push_back(m);
     }
   }
@@ -801,7 +829,7 @@ class Loader {
     body.where = At(node);
     CheckName(node["name"], element, body.name, "body");
     if (body.name == "ground") Fail(node["name"], element, "'ground' is reserved for the fixed frame");
-    if (model_.find_body(body.name) >= 0) Fail(node["name"], element, "duplicate body name");
+    if (FindBody(body.name) >= 0) Fail(node["name"], element, "duplicate body name");
 
     // Mass properties: explicit values win; a geometry with a density gives the rest.
     std::optional<MassProperties> from_geometry;
@@ -871,7 +899,7 @@ class Loader {
           CheckImplicit(it->second, m, marker_element, "the centre of mass with body axes");
           continue;
         }
-        if (model_.find_marker(m.name) >= 0) Fail(it->first, marker_element, "duplicate marker name");
+        if (FindMarker(m.name) >= 0) Fail(it->first, marker_element, "duplicate marker name");
         model_.markers.push_back(m);
       }
     }
@@ -1276,6 +1304,9 @@ class Loader {
     base.file = file_;
     base.notes.push_back("extends " + written);
     model_ = std::move(base);
+    marker_index_.clear();  // the name indices restart from the extended model
+    body_index_.clear();
+    markers_indexed_ = bodies_indexed_ = 0;
     extended_ = true;
     for (const Measure& m : model_.measures) symbols_.reserved.push_back(m.name);
   }
@@ -1296,7 +1327,7 @@ class Loader {
       if (!bodies.IsMap()) Fail(bodies, element, "'bodies' must be a mapping {NAME: {mass, inertia, markers}}");
       for (auto it = bodies.begin(); it != bodies.end(); ++it) {
         const std::string name = String(it->first, element, "body name");
-        const int b = model_.find_body(name);
+        const int b = FindBody(name);
         if (b < 0)
           Fail(it->first, element, "no body '" + name + "' in the extended model" + Suggest(name, names(model_.bodies)) +
                                        " (bodies: " + Join(names(model_.bodies)) + ")");
@@ -1329,7 +1360,7 @@ class Loader {
             const std::string marker_element = body_element + ", marker '" + local + "'";
             CheckMarkerName(mk->first, marker_element, local);
             const mbs::Marker m = LoadMarker(mk->second, marker_element, b, name + "." + local);
-            if (model_.find_marker(m.name) >= 0) Fail(mk->first, marker_element, "duplicate marker name");
+            if (FindMarker(m.name) >= 0) Fail(mk->first, marker_element, "duplicate marker name");
             model_.markers.push_back(m);
           }
         }
@@ -1638,6 +1669,10 @@ class Loader {
   std::vector<PendingLibrary> pending_libraries_;
   const LoadOptions& options_;
   Model model_;
+  // Name indices of model_.markers and model_.bodies (FindMarker, FindBody): a linear
+  // search per lookup made loading a chain of N bodies cost O(N^2).
+  mutable std::unordered_map<std::string, int> marker_index_, body_index_;
+  mutable size_t markers_indexed_ = 0, bodies_indexed_ = 0;
   SymbolTable symbols_;
   // Reaction measures (Model::measures index) and their `joint` node, until the joints are read.
   std::vector<std::pair<size_t, YAML::Node>> reaction_joints_;

@@ -1,0 +1,110 @@
+#!/usr/bin/env python3
+"""Seconds per phase against the size of the ball chain, and the fitted exponents.
+
+    /usr/bin/python3 bench/phases/run.py [--build DIR] [--n 10 100 1000 10000]
+                                         [--label NAME] [--out FILE.json] [--timeout S]
+
+For every N: writes the chain of bench/scenes/ball_chain.py (into a temporary folder),
+runs DIR/bench/bench_phases on it (seconds per phase, see bench_phases.cc) and times
+`DIR/mbdae check` on it (wall time of the process, best of 3 below 10 s, else one run).
+Then fits the exponent of every phase by least squares on log t against log N over the
+three largest N, and writes the JSON of all numbers (--out, default
+bench/phases/results-LABEL.json) and prints a Markdown table. A run that takes longer
+than --timeout seconds (default 1800) is stopped and its phases left empty.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, "..", "scenes"))
+import ball_chain  # noqa: E402
+
+PHASES = ["load", "build", "redundancy", "consistent", "determinacy", "assemble", "residual",
+          "jacobian", "hht_step", "ida_step", "row", "create_file", "write", "check"]
+
+
+def fit(ns, ts):
+    pts = [(math.log(n), math.log(t)) for n, t in zip(ns, ts) if t is not None and t > 0]
+    if len(pts) < 2:
+        return None
+    mx = sum(p[0] for p in pts) / len(pts)
+    my = sum(p[1] for p in pts) / len(pts)
+    sxx = sum((p[0] - mx) ** 2 for p in pts)
+    sxy = sum((p[0] - mx) * (p[1] - my) for p in pts)
+    return sxy / sxx
+
+
+def time_check(mbdae, model, timeout):
+    best = None
+    for _ in range(3):
+        t0 = time.perf_counter()
+        try:
+            subprocess.run([mbdae, "check", model], check=True, stdout=subprocess.DEVNULL,
+                           timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return None
+        dt = time.perf_counter() - t0
+        best = dt if best is None else min(best, dt)
+        if dt > 10:
+            break
+    return best
+
+
+def table(result):
+    ns = result["n"]
+    lines = ["| phase | " + " | ".join("N = %d" % n for n in ns) + " | exponent (3 largest N) |",
+             "| --- |" + " --- |" * (len(ns) + 1)]
+    for p in PHASES:
+        row = result["seconds"].get(p)
+        if row is None:
+            continue
+        cells = ["-" if t is None else "%.3g" % t for t in row]
+        e = result["exponents"].get(p)
+        lines.append("| %s | %s | %s |" % (p, " | ".join(cells), "-" if e is None else "%.2f" % e))
+    return "\n".join(lines)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--build", default=os.path.join(HERE, "..", "..", "build"))
+    ap.add_argument("--n", type=int, nargs="+", default=[10, 100, 1000, 10000])
+    ap.add_argument("--label", default="after")
+    ap.add_argument("--out")
+    ap.add_argument("--timeout", type=float, default=1800)
+    ap.add_argument("--skip", default="", help="phases not to run (comma-separated)")
+    a = ap.parse_args()
+    bench = os.path.join(a.build, "bench", "bench_phases")
+    mbdae = os.path.join(a.build, "mbdae")
+    result = {"label": a.label, "n": a.n, "seconds": {p: [] for p in PHASES}, "sizes": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in a.n:
+            model = os.path.join(tmp, "chain%d.yaml" % n)
+            ball_chain.write_chain(model, n)
+            cmd = [bench, model] + (["--skip", a.skip] if a.skip else [])
+            print("N = %d: %s" % (n, " ".join(cmd)), file=sys.stderr)
+            try:
+                out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True,
+                                     timeout=a.timeout, cwd=tmp).stdout
+                data = json.loads(out.strip().splitlines()[-1])
+            except subprocess.TimeoutExpired:
+                data = {"seconds": {}, "timed_out": a.timeout}
+            result["sizes"].append({k: v for k, v in data.items() if k != "seconds"})
+            check = None if "check" in a.skip.split(",") else time_check(mbdae, model, a.timeout)
+            data["seconds"]["check"] = check
+            for p in PHASES:
+                result["seconds"][p].append(data["seconds"].get(p))
+    result["exponents"] = {p: fit(a.n[-3:], result["seconds"][p][-3:]) for p in PHASES}
+    out = a.out or os.path.join(HERE, "results-%s.json" % a.label)
+    with open(out, "w") as f:
+        json.dump(result, f, indent=1)
+    print(table(result))
+
+
+if __name__ == "__main__":
+    main()
