@@ -179,3 +179,32 @@ def test_bad_requests_are_refused_before_running():
         mbdae.sweep(MODEL, {"k": [1]}, ["gradient:H"], "serial")
     with pytest.raises(mbdae.StudyError, match="options: t_end"):
         mbdae.sweep(MODEL, {"k": [1]}, ["objectives"], "serial", options={"t_end": -1})
+
+
+def test_worker_without_the_model_file_loads_the_shipped_text(tmp_path):
+    """A worker on another machine: the model's text travels with the task."""
+    path = tmp_path / "model.yaml"
+    with open(MODEL) as f:
+        text = f.read()
+    path.write_text(text)
+    plan = sw._Plan(str(path), ["k", "c"], [[1.1, 0.7]], ["final:xs"], OPTIONS)
+    here = sw._run(plan.spec, plan.values[0])
+    sw._local.models.clear()
+    path.unlink()  # as on a machine without the file
+    shipped = sw._run(plan.spec, plan.values[0])
+    assert shipped["status"] == "done", shipped["message"]
+    assert shipped["outputs"]["final:xs"] == here["outputs"]["final:xs"]
+    # a worker whose file at that path differs: loads the text as well (same numbers)
+    sw._local.models.clear()
+    path.write_text(text.replace("k: 1 ", "k: 2 "))
+    again = sw._run(plan.spec, plan.values[0])
+    assert again["outputs"]["final:xs"] == here["outputs"]["final:xs"]
+    # a big model (not shipped) missing on the worker: the run says so
+    sw._local.models.clear()
+    spec = sw._Spec(plan.spec.path, plan.spec.sha256, None, plan.spec.options, plan.names,
+                    plan.outputs, plan.wrt, "adjoint", "k")
+    path.unlink()
+    failed = sw._run(spec, plan.values[0])
+    assert failed["status"] == "failed"
+    assert "is not on this worker" in failed["message"], failed["message"]
+    sw._local.models.clear()
