@@ -194,6 +194,9 @@ void StoreRow(mbdae_model& m, const dae::State& x) {
   row.measures.assign(r.measures, r.measures + m.row_builder->num_measures());
   row.body_data.assign(r.body_data, r.body_data + 13 * nb);
   row.joint_data.assign(r.joint_data, r.joint_data + 6 * m.row_builder->num_joints());
+  if (r.joint_coordinate_data)
+    row.joint_coordinate_data.assign(r.joint_coordinate_data,
+                                     r.joint_coordinate_data + m.row_builder->num_joint_coordinate_values());
   row.force_data.assign(r.force_data, r.force_data + 6 * m.row_builder->num_forces());
   row.body_poses.resize(12 * nb);
   for (int b = 0; b < nb; ++b) {
@@ -600,6 +603,7 @@ void WriteResults(const mbdae_model& m, const std::string& path) {
       row.body_data = r.body_data.data();
       row.measures = r.measures.data();
       row.joint_data = r.joint_data.data();
+      row.joint_coordinate_data = r.joint_coordinate_data.empty() ? nullptr : r.joint_coordinate_data.data();
       row.force_data = r.force_data.data();
       row.kinetic_energy = r.kinetic_energy;
       row.potential_energy = r.potential_energy;

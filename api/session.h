@@ -70,6 +70,7 @@ struct OutputRow {
   std::vector<double> body_poses;       // 12 per body: position, rotation row-major
   std::vector<double> body_data;        // 13 per body: position, Euler parameters, v, omega
   std::vector<double> joint_data;       // 6 per joint: reaction force, torque
+  std::vector<double> joint_coordinate_data;  // 4 per joint coordinate of a tree (mbs/joint_space.h)
   std::vector<double> force_data;       // 6 per force element: force, torque
   double kinetic_energy = 0, potential_energy = 0;
   double position_violation = 0, velocity_violation = 0;

@@ -412,6 +412,10 @@ RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
   for (const auto& b : model.bodies) r.layout.bodies.push_back(b.name);
   for (const auto& m : model.measures) r.layout.measures.push_back(m.name);
   for (const auto& j : model.joints) r.layout.joints.push_back(j.name);
+  try {  // /joints/NAME/{position,rate,acceleration,generalized_force} of a tree's joints
+    r.layout.joint_coordinates = mbs::JointSpace(model).names();
+  } catch (const std::invalid_argument&) {
+  }
   for (const auto& f : model.forces) r.layout.forces.push_back(f.name);
   r.model = model_path.empty() ? model.file : model_path;
   r.model_name = model.name;
@@ -757,10 +761,6 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   RunDescription run =
       DescribeRun(model, asmb, settings, options.model_path, summary.integrator_detail);
   run.layout.efforts = EffortJointNames(model);
-  try {  // /joints/NAME/{position,rate,acceleration,generalized_force} of a tree's joints
-    run.layout.joint_coordinates = mbs::JointSpace(model).names();
-  } catch (const std::invalid_argument&) {
-  }
   // Without a results path the rows are computed (violations, progress) but not stored.
   std::unique_ptr<io::ResultsFile> results;
   if (!options.results_path.empty()) {

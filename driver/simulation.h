@@ -264,6 +264,8 @@ class OutputRowBuilder {
   int num_forces() const { return nf_; }
   // The joints with an effort (motion joints, Model::joints indices), in row order.
   const std::vector<int>& effort_joints() const { return effort_joints_; }
+  // Values in ResultsRow::joint_coordinate_data (4 per joint coordinate; 0 if not a tree).
+  int num_joint_coordinate_values() const { return static_cast<int>(joint_coordinates_.size()); }
   long fallbacks() const { return fallbacks_; }
 
  private:
