@@ -32,6 +32,7 @@
 #include "dae/klu_solver.h"
 #include "dae/sparse.h"
 #include "io/results_file.h"
+#include "io/results_geometry.h"
 #include "mbs/freedyn.h"
 #include "mbs/loader.h"
 
@@ -593,6 +594,7 @@ void WriteResults(const mbdae_model& m, const std::string& path) {
     file = std::make_unique<io::ResultsFile>(target.CreateTemporary(), m.run.layout);
     file->set_flush_interval(1e30);  // one flush at the end
     driver::WriteRunAttributes(*file, m.run);
+    io::WriteModelGeometry(*file, *m.model);  // /geometry, as the program writes it
     for (const OutputRow& r : m.rows) {
       io::ResultsRow row;
       row.t = r.t;
