@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "io/results_geometry.h"
+#include "mbs/model_writer.h"
 
 namespace mbdae::app {
 
@@ -32,28 +33,12 @@ const char* kViewUsage = "usage: mbdae view RESULTS.h5 [-o FILE.html]\n";
 
 // ---- JSON ------------------------------------------------------------------------------
 
+// A JSON string: mbs::DoubleQuoted's escapes are JSON's; "</" is written "<\\/" so that
+// no "</script>" in a name ends the page's script early.
 std::string JsonText(const std::string& s) {
-  std::string out = "\"";
-  for (size_t k = 0; k < s.size(); ++k) {
-    const unsigned char c = static_cast<unsigned char>(s[k]);
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      case '/': out += (k > 0 && s[k - 1] == '<') ? "\\/" : "/"; break;  // no "</script>" in the page
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out += static_cast<char>(c);
-        }
-    }
-  }
-  return out + "\"";
+  std::string out = mbs::DoubleQuoted(s);
+  for (size_t k = out.find("</"); k != std::string::npos; k = out.find("</", k + 3)) out.replace(k, 2, "<\\/");
+  return out;
 }
 
 void Number(std::string* out, double x) {

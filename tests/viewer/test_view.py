@@ -243,3 +243,25 @@ def test_mesh_geometry_in_the_results_file_and_the_page(tmp_path):
     assert r.returncode == 0, r.stderr
     page = (tmp_path / "m.html").read_text()
     assert '"meshes":[{"v":[' in page and page.count('"kind":"mesh"') == 2
+
+
+def test_names_cannot_end_the_pages_script(tmp_path):
+    """A model name holding "</script>" is written into the page's data as "<\\/script>":
+    the page keeps exactly the script tags of its template."""
+    model = open(os.path.join(EXAMPLES, "pendulum.yaml")).read()
+    assert "\nname: pendulum\n" in model
+    (tmp_path / "m.yaml").write_text(model.replace("\nname: pendulum\n",
+                                                   '\nname: "a</script><b>\\"quoted\\""\n'))
+    r = run(["simulate", "m.yaml", "-o", "m.h5", "--t-end", "0.01", "--quiet"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = run(["view", "m.h5", "-o", "m.html"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    page = (tmp_path / "m.html").read_text()
+    assert '"a<\\/script><b>\\"quoted\\""' in page
+    plain = tmp_path / "plain.html"
+    r = run(["simulate", os.path.join(EXAMPLES, "pendulum.yaml"), "-o", "p.h5", "--t-end", "0.01",
+             "--quiet"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = run(["view", "p.h5", "-o", str(plain)], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert page.count("</script>") == plain.read_text().count("</script>")
