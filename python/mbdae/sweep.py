@@ -1184,7 +1184,9 @@ recorded); 130 / 143 stopped by SIGINT / SIGTERM (the finished runs written); 1 
 """
 
 
-class _Stop(Exception):
+class _Stop(BaseException):
+    # Not an Exception: a signal raised while a result is being taken (future.result(),
+    # a run in this process) must end the study, not be recorded as that run's failure.
     def __init__(self, signal_number):
         super().__init__(signal_number)
         self.signal_number = signal_number
