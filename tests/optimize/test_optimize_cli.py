@@ -11,14 +11,13 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 
 import h5py
 import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
-from running import start_until_temporary, temporary_files  # noqa: E402
+from running import signal_keeps_earlier_file, start_until_temporary, temporary_files  # noqa: E402
 
 MBDAE = os.environ.get("MBDAE_BIN", "build/mbdae")
 HERE = os.environ.get("MBDAE_OPTIMIZE_DIR", "tests/optimize")
@@ -340,12 +339,4 @@ def test_signal_removes_the_temporary_file_and_keeps_the_earlier_one(tmp_path, s
     out.write_bytes(b"earlier results")
     proc = start_until_temporary([MBDAE, "optimize", str(problem), "--quiet", "-o", str(out)],
                                  tmp_path)
-    assert tmp_files(tmp_path) == ["out.h5.%d.tmp" % proc.pid]
-    # While the optimisation goes on, the earlier file is as it was.
-    time.sleep(0.5)
-    assert out.read_bytes() == b"earlier results"
-    proc.send_signal(signum)
-    proc.communicate(timeout=60)
-    assert proc.returncode == -signum  # ended by the signal
-    assert out.read_bytes() == b"earlier results"
-    assert tmp_files(tmp_path) == []
+    signal_keeps_earlier_file(proc, out, tmp_path, signum, b"earlier results")

@@ -21,3 +21,17 @@ def start_until_temporary(args, folder, cwd=None, attempts=600):
         time.sleep(0.1)
     assert proc.poll() is None, proc.communicate()
     return proc
+
+
+def signal_keeps_earlier_file(proc, out, folder, signum, earlier):
+    """For a run started by start_until_temporary that writes out (holding earlier): its
+    temporary file is there, out stays as it was while the run goes on, and signum ends
+    the program by the signal, with out unchanged and no temporary file left."""
+    assert temporary_files(folder) == ["%s.%d.tmp" % (out.name, proc.pid)]
+    time.sleep(0.5)  # paces the check only
+    assert out.read_bytes() == earlier
+    proc.send_signal(signum)
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signum  # ended by the signal
+    assert out.read_bytes() == earlier
+    assert temporary_files(folder) == []
