@@ -566,7 +566,7 @@ OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb,
     joint_space_ = std::make_shared<mbs::JointSpace>(model);
     const size_t n = joint_space_->size();
     joint_coordinates_.assign(4 * n, 0.0);
-    for (auto* v : {&joint_q_, &joint_qd_, &joint_qdd_, &joint_tau_, &joint_previous_}) v->assign(n, 0.0);
+    for (auto* v : {&joint_q_, &joint_qd_, &joint_qdd_, &joint_tau_, &joint_predicted_}) v->assign(n, 0.0);
   } catch (const std::invalid_argument&) {
     joint_space_.reset();
   }
@@ -647,10 +647,9 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
   if (joint_space_) {
     // Angles continued from the previous row's (the turn nearest to it moved by its rate).
     const size_t n = joint_q_.size();
-    std::vector<double> predicted(joint_previous_);
-    for (size_t k = 0; k < n; ++k) predicted[k] += (t - joint_previous_t_) * joint_qd_[k];
+    for (size_t k = 0; k < n; ++k) joint_predicted_[k] = joint_q_[k] + (t - joint_previous_t_) * joint_qd_[k];
     try {
-      joint_space_->RowValues(sys, t, x.q.data(), x.v.data(), a_.data(), first_ ? nullptr : predicted.data(),
+      joint_space_->RowValues(sys, t, x.q.data(), x.v.data(), a_.data(), first_ ? nullptr : joint_predicted_.data(),
                               joint_q_.data(), joint_qd_.data(), joint_qdd_.data(), joint_tau_.data());
     } catch (const std::runtime_error&) {
       std::fill(joint_tau_.begin(), joint_tau_.end(), std::numeric_limits<double>::quiet_NaN());
@@ -660,7 +659,6 @@ const io::ResultsRow& OutputRowBuilder::Compute(const dae::State& x) {
       joint_coordinates_[4 * k + 1] = joint_qd_[k];
       joint_coordinates_[4 * k + 2] = joint_qdd_[k];
       joint_coordinates_[4 * k + 3] = joint_tau_[k];
-      joint_previous_[k] = joint_q_[k];
     }
     joint_previous_t_ = t;
   }

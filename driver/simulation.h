@@ -296,7 +296,9 @@ class OutputRowBuilder {
   // Joint coordinates of a tree (null if the joints are not one): position, rate,
   // acceleration, generalized force per coordinate, in row order; the previous positions.
   std::shared_ptr<mbs::JointSpace> joint_space_;
-  std::vector<double> joint_coordinates_, joint_q_, joint_qd_, joint_qdd_, joint_tau_, joint_previous_;
+  // joint_q_ and joint_qd_ hold the last row's values until the next row: with its time
+  // they predict the next row's angles (joint_predicted_, a buffer) for unwrapping.
+  std::vector<double> joint_coordinates_, joint_q_, joint_qd_, joint_qdd_, joint_tau_, joint_predicted_;
   double joint_previous_t_ = 0;
 };
 
