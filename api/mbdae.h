@@ -111,11 +111,13 @@ mbdae_status mbdae_set_spline_points(mbdae_model* model, int index, const double
                                      const double* y, int n);
 
 /* Simulation settings, with the names and value syntax of the model file's `simulation:`
- * block: "t_end", "output_step", "integrator" (hht|ida|kinematic: kinematic
- * analysis, for models without degrees of freedom), "hht.alpha", "hht.step",
+ * block: "t_end", "output_step", "integrator" (hht|ida|kinematic|erk; kinematic:
+ * kinematic analysis, for models without degrees of freedom; erk: explicit Runge-Kutta
+ * on the index-1 form), "hht.alpha", "hht.step",
  * "hht.adaptive" (true|false), "hht.tolerance", "hht.modified", "hht.form"
  * (equilibrium|negrut), "ida.rtol", "ida.atol", "ida.max_steps" (a whole number >= 1),
- * "ida.min_step" (>= 0; 0: no limit). Numbers are plain numbers (no
+ * "ida.min_step" (>= 0; 0: no limit), "erk.rtol", "erk.atol", "erk.max_steps",
+ * "erk.min_step", "erk.max_step" (>= 0; 0: automatic / no limit). Numbers are plain numbers (no
  * expressions). Validated as the program validates its options: an unknown key is
  * MBDAE_ERROR_ARGUMENT, a bad value MBDAE_ERROR_INPUT (the old value stays). Takes
  * effect at the next assembly (set before solving): like a parameter, it marks the

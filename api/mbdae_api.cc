@@ -491,8 +491,10 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
       o.integrator = mbs::IntegratorKind::kIda;
     else if (v == "kinematic")
       o.integrator = mbs::IntegratorKind::kKinematic;
+    else if (v == "erk")
+      o.integrator = mbs::IntegratorKind::kErk;
     else
-      throw ApiError(MBDAE_ERROR_INPUT, "option integrator: expected hht, ida or kinematic, got '" + v + "'");
+      throw ApiError(MBDAE_ERROR_INPUT, "option integrator: expected hht, ida, kinematic or erk, got '" + v + "'");
   } else if (key == "hht.alpha") {
     o.hht_alpha = ParseOptionNumber(key, value);
   } else if (key == "hht.step") {
@@ -521,6 +523,20 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.ida_max_steps = static_cast<long>(x);
   } else if (key == "ida.min_step") {
     o.ida_min_step = ParseOptionNumber(key, value);
+  } else if (key == "erk.rtol") {
+    o.erk_rtol = ParseOptionNumber(key, value);
+  } else if (key == "erk.atol") {
+    o.erk_atol = ParseOptionNumber(key, value);
+  } else if (key == "erk.max_steps") {
+    const double x = ParseOptionNumber(key, value);
+    if (!(x >= 1 && x == std::floor(x) && x <= 9e18))
+      throw ApiError(MBDAE_ERROR_INPUT, "option erk.max_steps: expected a whole number >= 1, got '" +
+                                            std::string(value) + "'");
+    o.erk_max_steps = static_cast<long>(x);
+  } else if (key == "erk.min_step") {
+    o.erk_min_step = ParseOptionNumber(key, value);
+  } else if (key == "erk.max_step") {
+    o.erk_max_step = ParseOptionNumber(key, value);
   } else {
     UnknownOption(key);
   }
@@ -551,6 +567,11 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "ida.atol") return Num(s.ida_atol);
   if (key == "ida.max_steps") return std::to_string(s.ida_max_steps);
   if (key == "ida.min_step") return Num(s.ida_min_step);
+  if (key == "erk.rtol") return Num(s.erk_rtol);
+  if (key == "erk.atol") return Num(s.erk_atol);
+  if (key == "erk.max_steps") return std::to_string(s.erk_max_steps);
+  if (key == "erk.min_step") return Num(s.erk_min_step);
+  if (key == "erk.max_step") return Num(s.erk_max_step);
   std::string gradient_value;
   if (GetGradientOption(m, key, &gradient_value)) return gradient_value;
   UnknownOption(key);

@@ -177,9 +177,10 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       if (cl.output_path.empty()) throw UsageError(arg + ": empty file name");
     } else if (arg == "--integrator") {
       only_simulate();
-      const std::string v = choice({"hht", "ida", "kinematic"});
+      const std::string v = choice({"hht", "ida", "kinematic", "erk"});
       cl.overrides.integrator = v == "hht"   ? mbs::IntegratorKind::kHht
                                 : v == "ida" ? mbs::IntegratorKind::kIda
+                                : v == "erk" ? mbs::IntegratorKind::kErk
                                              : mbs::IntegratorKind::kKinematic;
     } else if (arg == "--t-end") {
       only_simulate();
@@ -223,10 +224,10 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       cl.overrides.output_accelerations = choice({"solved", "integrator"});
     } else if (arg == "--rtol") {
       only_simulate();
-      cl.overrides.ida_rtol = number();
+      cl.overrides.ida_rtol = cl.overrides.erk_rtol = number();
     } else if (arg == "--atol") {
       only_simulate();
-      cl.overrides.ida_atol = number();
+      cl.overrides.ida_atol = cl.overrides.erk_atol = number();
     } else if (arg == "--objective") {
       only_gradient();
       for (auto& n : names()) cl.objectives.push_back(n);

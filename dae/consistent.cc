@@ -525,7 +525,8 @@ struct AccelerationSolver::Impl {
   std::unique_ptr<KluSolver> klu;
   std::string error;
 
-  explicit Impl(MechanicalSystem& s) : system(s), nq(s.num_coordinates()), nc(s.num_constraints()) {
+  Impl(MechanicalSystem& s, int growth_check_interval)
+      : system(s), nq(s.num_coordinates()), nc(s.num_constraints()) {
     const CscPattern& pm = system.pattern(Matrix::kMass);
     const CscPattern& pc = system.pattern(Matrix::kConstraintDq);
     b_m = kkt.AddBlock(pm, 0, 0);
@@ -537,12 +538,14 @@ struct AccelerationSolver::Impl {
     values.assign(kkt.pattern().nnz(), 0.0);
     sol.assign(nq + nc, 0.0);
     gamma.assign(nc, 0.0);
-    klu = std::make_unique<KluSolver>(kkt.pattern());
+    klu = std::make_unique<KluSolver>(kkt.pattern(), growth_check_interval);
   }
 };
 
 AccelerationSolver::AccelerationSolver(MechanicalSystem& system)
-    : impl_(std::make_unique<Impl>(system)) {}
+    : impl_(std::make_unique<Impl>(system, 1)) {}
+AccelerationSolver::AccelerationSolver(MechanicalSystem& system, int growth_check_interval)
+    : impl_(std::make_unique<Impl>(system, growth_check_interval)) {}
 AccelerationSolver::~AccelerationSolver() = default;
 const std::string& AccelerationSolver::last_error() const { return impl_->error; }
 

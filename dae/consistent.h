@@ -61,6 +61,8 @@ std::unique_ptr<MechanicalSystem> KeepConstraints(MechanicalSystem& base, std::v
 class AccelerationSolver {
  public:
   explicit AccelerationSolver(MechanicalSystem& system);
+  // growth_check_interval: see KluSolver (1: the pivot growth checked at every solve).
+  AccelerationSolver(MechanicalSystem& system, int growth_check_interval);
   ~AccelerationSolver();
   AccelerationSolver(const AccelerationSolver&) = delete;
   AccelerationSolver& operator=(const AccelerationSolver&) = delete;

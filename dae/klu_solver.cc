@@ -28,6 +28,8 @@ struct KluSolver::Impl {
   double rcond = 0;
   double rcond_full = 0;  // rcond after the last full factorisation
   long factorizations = 0;
+  int growth_check_interval = 1;
+  long refactors_since_check = 0;
 
   ~Impl() {
     if (numeric) klu_free_numeric(&numeric, &common);
@@ -66,7 +68,14 @@ struct KluSolver::Impl {
   }
 };
 
-KluSolver::KluSolver(const CscPattern& pattern) : impl_(std::make_unique<Impl>()) {
+KluSolver::KluSolver(const CscPattern& pattern) : KluSolver(pattern, 1) {}
+
+KluSolver::KluSolver(const CscPattern& pattern, int growth_check_interval)
+    : impl_(std::make_unique<Impl>()) {
+  if (growth_check_interval < 1)
+    throw std::invalid_argument("KluSolver: growth_check_interval must be >= 1, got " +
+                                std::to_string(growth_check_interval));
+  impl_->growth_check_interval = growth_check_interval;
   std::string err;
   if (!pattern.IsValid(&err)) throw std::invalid_argument("KluSolver: invalid pattern: " + err);
   if (pattern.rows != pattern.cols)
@@ -101,8 +110,12 @@ bool KluSolver::Factor(const double* values, std::string* error) {
                               &d.common);
   ++d.factorizations;
   if (ok && d.common.status == KLU_OK) {
-    klu_rgrowth(d.col_start.data(), d.row_index.data(), vals, d.symbolic, d.numeric, &d.common);
-    const double growth = d.common.rgrowth;
+    double growth = 1;
+    if (++d.refactors_since_check >= d.growth_check_interval) {
+      d.refactors_since_check = 0;
+      klu_rgrowth(d.col_start.data(), d.row_index.data(), vals, d.symbolic, d.numeric, &d.common);
+      growth = d.common.rgrowth;
+    }
     klu_rcond(d.symbolic, d.numeric, &d.common);
     d.rcond = d.common.rcond;
     if (growth > kMinPivotGrowth && d.rcond > kRcondDropFactor * d.rcond_full &&

@@ -12,6 +12,13 @@ namespace mbdae::dae {
 class KluSolver {
  public:
   explicit KluSolver(const CscPattern& pattern);  // analyses the pattern
+  // growth_check_interval: the pivot growth of a refactorisation (klu_rgrowth, about as
+  // costly as a tenth to a third of the refactorisation itself) is checked after every
+  // growth_check_interval-th refactorisation only (1: after each; the condition estimate
+  // is checked after each in any case). For callers that refactor at many nearby values
+  // (the explicit integrator's stages) and accept that pivots gone poor are found a few
+  // refactorisations late.
+  KluSolver(const CscPattern& pattern, int growth_check_interval);
   ~KluSolver();
   KluSolver(const KluSolver&) = delete;
   KluSolver& operator=(const KluSolver&) = delete;

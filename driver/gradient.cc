@@ -200,6 +200,9 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
   } catch (const std::invalid_argument& e) {
     throw InputError(Prefix(m) + "--wrt: " + e.what());
   }
+  if (settings.integrator == mbs::IntegratorKind::kErk)
+    throw InputError(Prefix(m) + "gradients are taken of hht or ida runs; the erk integrator has no "
+                     "sensitivities (use --integrator hht or ida)");
   if (settings.integrator == mbs::IntegratorKind::kKinematic)
     throw InputError(Prefix(m) + "gradients are taken of hht or ida runs; the kinematic analysis has no "
                      "sensitivities (use --integrator hht or ida)");

@@ -58,6 +58,16 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   return o;
 }
 
+dae::ErkOptions ErkOptionsOf(const mbs::SimulationSettings& s) {
+  dae::ErkOptions o;
+  o.rtol = s.erk_rtol;
+  o.atol = s.erk_atol;
+  o.max_steps = s.erk_max_steps;
+  o.min_step = s.erk_min_step;
+  o.max_step = s.erk_max_step;
+  return o;
+}
+
 dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& s) {
   dae::IdaOptions o;
   o.rtol = s.ida_rtol;
@@ -91,6 +101,7 @@ const char* IntegratorName(mbs::IntegratorKind kind) {
   switch (kind) {
     case mbs::IntegratorKind::kIda: return "ida";
     case mbs::IntegratorKind::kKinematic: return "kinematic";
+    case mbs::IntegratorKind::kErk: return "erk";
     case mbs::IntegratorKind::kHht: break;
   }
   return "hht";
@@ -143,6 +154,11 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
   if (o.ida_max_steps) s.ida_max_steps = *o.ida_max_steps;
   if (o.ida_min_step) s.ida_min_step = *o.ida_min_step;
+  if (o.erk_rtol) s.erk_rtol = *o.erk_rtol;
+  if (o.erk_atol) s.erk_atol = *o.erk_atol;
+  if (o.erk_max_steps) s.erk_max_steps = *o.erk_max_steps;
+  if (o.erk_min_step) s.erk_min_step = *o.erk_min_step;
+  if (o.erk_max_step) s.erk_max_step = *o.erk_max_step;
   if (!(s.t_end > 0) || !std::isfinite(s.t_end))
     throw InputError("simulation setting t_end must be > 0, got " + Num(s.t_end));
   if (!(s.output_step > 0) || !std::isfinite(s.output_step))
@@ -159,6 +175,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   // the command line is a mistake whichever integrator runs.
   if (!HhtOptionsOf(s).IsValid(&error)) throw InputError("hht settings: " + error);
   if (!IdaOptionsOf(s).IsValid(&error)) throw InputError("ida settings: " + error);
+  if (!ErkOptionsOf(s).IsValid(&error)) throw InputError("erk settings: " + error);
   return s;
 }
 
@@ -452,6 +469,12 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("ida_atol", settings.ida_atol);
     file.SetAttribute("ida_max_steps", settings.ida_max_steps);
     file.SetAttribute("ida_min_step", settings.ida_min_step);
+  } else if (settings.integrator == mbs::IntegratorKind::kErk) {
+    file.SetAttribute("erk_rtol", settings.erk_rtol);
+    file.SetAttribute("erk_atol", settings.erk_atol);
+    file.SetAttribute("erk_max_steps", settings.erk_max_steps);
+    file.SetAttribute("erk_min_step", settings.erk_min_step);
+    file.SetAttribute("erk_max_step", settings.erk_max_step);
   } else {
     const dae::KinematicOptions kinematic;
     file.SetAttribute("kinematic_tolerance", kinematic.tolerance);
@@ -503,6 +526,12 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
   if (settings.integrator == mbs::IntegratorKind::kKinematic) {
     CheckIntegrator(system, settings);
     return dae::MakeKinematicSolver(system);
+  }
+  if (settings.integrator == mbs::IntegratorKind::kErk) {
+    const dae::ErkOptions o = ErkOptionsOf(settings);
+    std::string error;
+    if (!o.IsValid(&error)) throw InputError("erk settings: " + error);
+    return dae::MakeErkIntegrator(system, o);
   }
   return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
 }
@@ -768,10 +797,13 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
     io::WriteModelGeometry(*results, model);  // /geometry: what to draw (io/results_geometry.h)
   }
 
-  // The kinematic analysis's a and lambda are the solved ones already (the same
-  // acceleration-level solve at the same (t, q, v)): the rows take them as they are.
+  // The kinematic analysis's and the erk integrator's a and lambda are the solved ones
+  // already (the same acceleration-level solve at the same (t, q, v)): the rows take them
+  // as they are.
   mbs::SimulationSettings row_settings = settings;
-  if (settings.integrator == mbs::IntegratorKind::kKinematic) row_settings.output_accelerations = "integrator";
+  if (settings.integrator == mbs::IntegratorKind::kKinematic ||
+      settings.integrator == mbs::IntegratorKind::kErk)
+    row_settings.output_accelerations = "integrator";
   OutputRowBuilder rows(model, asmb, row_settings);
   long rows_computed = 0;
   auto write_row = [&](const dae::State& x) {

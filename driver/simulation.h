@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "dae/consistent.h"
+#include "dae/erk.h"
 #include "dae/hht.h"
 #include "dae/ida.h"
 #include "dae/integrator.h"
@@ -52,6 +53,9 @@ struct SettingsOverrides {
   std::optional<double> ida_rtol, ida_atol;
   std::optional<long> ida_max_steps;
   std::optional<double> ida_min_step;
+  std::optional<double> erk_rtol, erk_atol;
+  std::optional<long> erk_max_steps;
+  std::optional<double> erk_min_step, erk_max_step;
 };
 
 // The model's settings with the overrides applied, validated (t_end > 0, 0 < output_step,
@@ -61,7 +65,7 @@ struct SettingsOverrides {
 mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
                                         const SettingsOverrides& overrides);
 
-const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida" | "kinematic"
+const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida" | "kinematic" | "erk"
 
 // Degrees of freedom of a system of independent constraint equations (Assembly::
 // kept_system): coordinates minus equations.
@@ -75,6 +79,7 @@ void CheckIntegrator(const dae::MechanicalSystem& kept_system, const mbs::Simula
 // unknown form or start.
 dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& settings);
 dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& settings);
+dae::ErkOptions ErkOptionsOf(const mbs::SimulationSettings& settings);
 
 // The model assembled at t = 0.
 struct Assembly {

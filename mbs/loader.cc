@@ -1585,7 +1585,7 @@ class Loader {
     if (!node) return;
     const std::string element = "simulation";
     SimulationSettings& s = model_.simulation;
-    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida", "output_accelerations"},
+    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida", "erk", "output_accelerations"},
               "simulation");
     auto positive = [&](const YAML::Node& n, const std::string& key) {
       const double x = LoadTimeNumber(n, element, key);
@@ -1598,7 +1598,8 @@ class Loader {
       s.integrator = Enum<IntegratorKind>(n, element, "integrator",
                                           {{"hht", IntegratorKind::kHht},
                                            {"ida", IntegratorKind::kIda},
-                                           {"kinematic", IntegratorKind::kKinematic}});
+                                           {"kinematic", IntegratorKind::kKinematic},
+                                           {"erk", IntegratorKind::kErk}});
       s.integrator_named = true;
       s.integrator_where = At(n);
     }
@@ -1639,6 +1640,24 @@ class Loader {
         s.ida_max_steps = static_cast<long>(x);
       }
       if (const YAML::Node n = i["min_step"]) s.ida_min_step = positive(n, "ida min_step");
+    }
+    if (const YAML::Node e = node["erk"]) {
+      CheckKeys(e, element, {"rtol", "atol", "max_steps", "min_step", "max_step"}, "erk");
+      if (const YAML::Node n = e["rtol"]) s.erk_rtol = positive(n, "erk rtol");
+      if (const YAML::Node n = e["atol"]) s.erk_atol = positive(n, "erk atol");
+      if (const YAML::Node n = e["max_steps"]) {
+        const double x = LoadTimeNumber(n, element, "erk max_steps");
+        if (!(x >= 1 && x == std::floor(x) && x <= 9e18)) {
+          Fail(n, element, "erk max_steps must be a whole number >= 1, got " + Num(x));
+        }
+        s.erk_max_steps = static_cast<long>(x);
+      }
+      if (const YAML::Node n = e["min_step"]) s.erk_min_step = positive(n, "erk min_step");
+      if (const YAML::Node n = e["max_step"]) s.erk_max_step = positive(n, "erk max_step");
+      if (const YAML::Node n = e["min_step"]; n && s.erk_max_step > 0 && s.erk_min_step > s.erk_max_step) {
+        Fail(n, element, "erk min_step " + Num(s.erk_min_step) + " is larger than its max_step " +
+                             Num(s.erk_max_step));
+      }
     }
     // Settings that are each > 0 but cannot be used together or by the integrator.
     const double rows = s.t_end / s.output_step;

@@ -236,7 +236,9 @@ struct Objective {
 };
 
 // kKinematic: kinematic analysis of a model without degrees of freedom (dae/kinematic.h).
-enum class IntegratorKind { kHht, kIda, kKinematic };
+// kErk: explicit Runge-Kutta (Dormand-Prince 5(4)) on the index-1 form with projection
+// (dae/erk.h).
+enum class IntegratorKind { kHht, kIda, kKinematic, kErk };
 
 // The most output rows a run may have (t_end / output_step); the loaders refuse more
 // with the file and line, the driver (driver/simulation.h) settings from the command line.
@@ -269,6 +271,15 @@ struct SimulationSettings {
   // min_step}` take a positive integer and a positive number.
   long ida_max_steps = 100000000;
   double ida_min_step = 0;
+  // The explicit Runge-Kutta integrator (dae/erk.h ErkOptions): its local error
+  // tolerances, step budget (total steps), smallest step (0: 1e-14 max(1, |t|)) and
+  // largest step (0: no limit); the file's `erk: {rtol, atol, max_steps, min_step,
+  // max_step}`.
+  double erk_rtol = 1e-8;
+  double erk_atol = 1e-10;
+  long erk_max_steps = 100000000;
+  double erk_min_step = 0;
+  double erk_max_step = 0;
   // a and lambda of the output rows: "solved" (the acceleration-level equations
   // [M C_q^T; C_q 0] [a; lambda] = [Q; gamma] at the row's (t, q, v)) or "integrator"
   // (the integrator's own values); docs/model-format.md, "Simulation".

@@ -328,6 +328,7 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   s << "  output_step: " << Num(sim.output_step) << "\n";
   s << "  integrator: " << (sim.integrator == IntegratorKind::kHht   ? "hht"
                                  : sim.integrator == IntegratorKind::kIda ? "ida"
+                                 : sim.integrator == IntegratorKind::kErk ? "erk"
                                                                           : "kinematic") << "\n";
   s << "  output_accelerations: " << sim.output_accelerations << "\n";
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
@@ -338,6 +339,18 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;
   if (sim.ida_min_step > 0) s << ", min_step: " << Num(sim.ida_min_step);
   s << "}\n";
+  // The erk block only when it is used or set (files written before it existed stay as
+  // they were).
+  const SimulationSettings defaults;
+  if (sim.integrator == IntegratorKind::kErk || sim.erk_rtol != defaults.erk_rtol ||
+      sim.erk_atol != defaults.erk_atol || sim.erk_max_steps != defaults.erk_max_steps ||
+      sim.erk_min_step > 0 || sim.erk_max_step > 0) {
+    s << "  erk: {rtol: " << Num(sim.erk_rtol) << ", atol: " << Num(sim.erk_atol);
+    if (sim.erk_max_steps != defaults.erk_max_steps) s << ", max_steps: " << sim.erk_max_steps;
+    if (sim.erk_min_step > 0) s << ", min_step: " << Num(sim.erk_min_step);
+    if (sim.erk_max_step > 0) s << ", max_step: " << Num(sim.erk_max_step);
+    s << "}\n";
+  }
   return s.str();
 }
 

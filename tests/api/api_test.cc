@@ -278,7 +278,8 @@ TEST(ApiErrors, BadOptionValuesAreInputErrorsAndChangeNothing) {
   EXPECT_EQ(mbdae_set_option(m, "output_step", "0.01s"), MBDAE_ERROR_INPUT);
   EXPECT_STREQ(mbdae_last_error(), "option output_step: expected a number, got '0.01s'");
   EXPECT_EQ(mbdae_set_option(m, "integrator", "euler"), MBDAE_ERROR_INPUT);
-  EXPECT_STREQ(mbdae_last_error(), "option integrator: expected hht, ida or kinematic, got 'euler'");
+  EXPECT_STREQ(mbdae_last_error(),
+               "option integrator: expected hht, ida, kinematic or erk, got 'euler'");
   EXPECT_EQ(mbdae_set_option(m, "hht.adaptive", "yes"), MBDAE_ERROR_INPUT);
   EXPECT_STREQ(mbdae_last_error(), "option hht.adaptive: expected true or false, got 'yes'");
   EXPECT_EQ(mbdae_set_option(m, "hht.alpha", "-0.5"), MBDAE_ERROR_INPUT);
@@ -316,6 +317,22 @@ TEST(ApiErrors, BadOptionValuesAreInputErrorsAndChangeNothing) {
     EXPECT_NE(std::string(mbdae_last_error()).find(key), std::string::npos) << mbdae_last_error();
   }
   EXPECT_EQ(option("ida.max_steps"), "5000");  // the old value stays
+  // The erk integrator's settings (the file's erk: {rtol, atol, max_steps, min_step,
+  // max_step}).
+  EXPECT_EQ(std::atof(option("erk.rtol").c_str()), 1e-8);
+  EXPECT_EQ(option("erk.max_steps"), "100000000");
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "integrator", "erk"));
+  EXPECT_EQ(option("integrator"), "erk");
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "erk.rtol", "1e-7"));
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "erk.max_step", "0.5"));
+  EXPECT_EQ(std::atof(option("erk.rtol").c_str()), 1e-7);
+  EXPECT_EQ(std::atof(option("erk.max_step").c_str()), 0.5);
+  const std::pair<const char*, const char*> bad_erk[] = {
+      {"erk.rtol", "0"}, {"erk.atol", "-1"}, {"erk.max_steps", "2.5"}, {"erk.min_step", "1"}};
+  for (const auto& [key, value] : bad_erk) {
+    EXPECT_EQ(mbdae_set_option(m, key, value), MBDAE_ERROR_INPUT) << key << " = " << value;
+    EXPECT_NE(std::string(mbdae_last_error()).find(key), std::string::npos) << mbdae_last_error();
+  }
 }
 
 TEST(ApiErrors, SolverFailureKeepsTheRowsSoFar) {
