@@ -30,6 +30,10 @@ T_END = ref.T_END
 CSV = "work_precision.csv"
 IDA_TOLS = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
 HHT_TOLS = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
+# Adaptive HHT with rows every 0.1 s: with rows every 0.01 s the output step caps HHT's
+# step at tolerances 1e-4 and 1e-5 (README, "Adaptive HHT and the output step").
+HHT_COARSE_TOLS = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
+COARSE_OUTPUT_STEP = 0.1
 HHT_STEPS = [1e-3, 1e-4]
 # The error at 10 s each setting must stay below (rad): a bound of the measured error
 # with a margin for the chaotic dependence of a run's steps on rounding (README).
@@ -55,11 +59,14 @@ def args_for(integ, val):
     if integ == "hht-adaptive":
         return ["--integrator", "hht", "--adaptive", "--alpha", "-0.1", "--step", "1e-3",
                 "--tolerance", repr(val)]
+    if integ == "hht-adaptive-rows-0.1":
+        return args_for("hht-adaptive", val) + ["--output-step", repr(COARSE_OUTPUT_STEP)]
     return ["--integrator", "hht", "--fixed-step", "--alpha", "-0.1", "--step", repr(val)]
 
 
 def fmt_setting(integ, val):
-    return {"ida": "rtol = atol = %g", "hht-adaptive": "tol = %g", "hht-fixed": "h = %g"}[integ] % val
+    return {"ida": "rtol = atol = %g", "hht-adaptive": "tol = %g", "hht-fixed": "h = %g",
+            "hht-adaptive-rows-0.1": "tol = %g, rows every 0.1 s"}[integ] % val
 
 
 def run_case(runner, integ, val):
@@ -122,7 +129,8 @@ def main():
         cases = [("ida", 1e-8), ("hht-adaptive", 1e-6)]
     else:
         cases = ([("ida", v) for v in IDA_TOLS] + [("hht-adaptive", v) for v in HHT_TOLS]
-                 + [("hht-fixed", v) for v in HHT_STEPS])
+                 + [("hht-fixed", v) for v in HHT_STEPS]
+                 + [("hht-adaptive-rows-0.1", v) for v in HHT_COARSE_TOLS])
     runs = []
     for integ, val in cases:
         c = run_case(runner, integ, val)
@@ -168,6 +176,23 @@ def main():
             for a, b in zip(tols, tols[2:]):
                 checks.append(("%s: largest error at tolerance %g (%.2e) below that at %g (%.2e)" % (
                     integ, b, err[b], a, err[a]), err[b] < err[a]))
+        # Adaptive HHT whose step the output step does not cap: the error falls at every
+        # decade of the tolerance.
+        err = {c["value"]: c["error_max"] for c in runs if c["integrator"] == "hht-adaptive-rows-0.1"}
+        for a, b in zip(HHT_COARSE_TOLS, HHT_COARSE_TOLS[1:]):
+            checks.append(("hht-adaptive, rows every 0.1 s: largest error at tolerance %g (%.2e) "
+                           "below that at %g (%.2e)" % (b, err[b], a, err[a]), err[b] < err[a]))
+        # With rows every 0.01 s, tolerance 1e-4 takes one step per output interval: the
+        # step is the output step, and the run is the fixed-step run h = 0.01 (README).
+        pinned = [c for c in runs if c["integrator"] == "hht-adaptive" and c["value"] == 1e-4]
+        if pinned:
+            c = pinned[0]
+            md.append("Adaptive HHT at tol = 1e-4 with rows every 0.01 s: %d steps (%d rejected) "
+                      "for %d output intervals: the output step caps the step everywhere (README, "
+                      "\"Adaptive HHT and the output step\"); with rows every 0.1 s it takes %s.\n" % (
+                          c["steps"], c["rejected"], round(T_END / 0.01),
+                          ", ".join("%d steps at tol %g" % (d["steps"], d["value"]) for d in runs
+                                    if d["integrator"] == "hht-adaptive-rows-0.1" and d["value"] in (1e-4, 1e-5))))
         with open(os.path.join(OUT, CSV), "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(["problem", "integrator", "setting", "cpu_time", "error", "error_10s", "steps",
@@ -208,7 +233,8 @@ def plot(runs):
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     styles = {"ida": ("^-", "IDA, rtol = atol = 1e-4 ... 1e-10"),
               "hht-adaptive": ("s-", "HHT adaptive, tol = 1e-4 ... 1e-9"),
-              "hht-fixed": ("o-", "HHT fixed step, h = 1e-3, 1e-4")}
+              "hht-fixed": ("o-", "HHT fixed step, h = 1e-3, 1e-4"),
+              "hht-adaptive-rows-0.1": ("s--", "HHT adaptive, tol = 1e-4 ... 1e-9, rows every 0.1 s")}
     for integ, (mark, label) in styles.items():
         pts = [(c["cpu"], c["error_max"]) for c in runs if c["integrator"] == integ and c["status"] == "done"]
         if pts:
