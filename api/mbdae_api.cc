@@ -612,7 +612,9 @@ void WriteResults(const mbdae_model& m, const std::string& path) {
   ResultsTarget target(path, {{"model file", m.path}});
   std::unique_ptr<io::ResultsFile> file;
   try {
-    file = std::make_unique<io::ResultsFile>(target.CreateTemporary(), m.run.layout);
+    io::ResultsLayout layout = m.run.layout;
+    layout.expected_rows = static_cast<long>(m.rows.size());  // the rows stored: all of them
+    file = std::make_unique<io::ResultsFile>(target.CreateTemporary(), layout);
     file->set_flush_interval(1e30);  // one flush at the end
     driver::WriteRunAttributes(*file, m.run);
     io::WriteModelGeometry(*file, *m.model);  // /geometry, as the program writes it

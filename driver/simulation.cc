@@ -434,6 +434,10 @@ RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
   } catch (const std::invalid_argument&) {
   }
   for (const auto& f : model.forces) r.layout.forces.push_back(f.name);
+  // The rows of a complete run (t = 0, then every output_step up to t_end): the chunk size.
+  const double intervals = std::ceil(settings.t_end / settings.output_step - 1e-9);
+  r.layout.expected_rows =
+      intervals >= 0 && intervals < 1e15 ? static_cast<long>(intervals) + 1 : 0;
   r.model = model_path.empty() ? model.file : model_path;
   r.model_name = model.name;
   r.settings = settings;

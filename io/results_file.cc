@@ -84,7 +84,8 @@ struct RowDataset {
   int rank = 1;
 };
 
-RowDataset CreateRowDataset(hid_t parent, const std::string& name, int cols, bool one_dim) {
+RowDataset CreateRowDataset(hid_t parent, const std::string& name, int cols, bool one_dim,
+                            long expected_rows) {
   RowDataset d;
   d.cols = one_dim ? 0 : cols;
   d.rank = one_dim ? 1 : 2;
@@ -92,8 +93,9 @@ RowDataset CreateRowDataset(hid_t parent, const std::string& name, int cols, boo
   hsize_t dims[2] = {0, static_cast<hsize_t>(d.cols)};
   // Unlimited in both dimensions: a fixed zero-width second dimension cannot be chunked.
   hsize_t max_dims[2] = {H5S_UNLIMITED, H5S_UNLIMITED};
-  // About 8 KiB per chunk, at least 16 rows.
-  const hsize_t chunk_rows = std::max<hsize_t>(16, 1024 / static_cast<hsize_t>(width));
+  // About 8 KiB per chunk, at least 16 rows; at most the rows expected.
+  hsize_t chunk_rows = std::max<hsize_t>(16, 1024 / static_cast<hsize_t>(width));
+  if (expected_rows > 0) chunk_rows = std::min<hsize_t>(chunk_rows, static_cast<hsize_t>(expected_rows));
   hsize_t chunk[2] = {chunk_rows, static_cast<hsize_t>(width)};
   Handle space = Check(H5Screate_simple(d.rank, dims, max_dims), H5Sclose, "create a dataspace");
   Handle plist = Check(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create a property list");
@@ -216,54 +218,54 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   const int nq = static_cast<int>(layout.q_names.size());
   const int nc = static_cast<int>(layout.lambda_names.size());
 
-  m.time = CreateRowDataset(f, "time", 0, true);
-  m.q = CreateRowDataset(f, "q", nq, false);
-  m.v = CreateRowDataset(f, "v", nq, false);
-  m.a = CreateRowDataset(f, "a", nq, false);
-  m.lambda = CreateRowDataset(f, "lambda", nc, false);
+  m.time = CreateRowDataset(f, "time", 0, true, layout.expected_rows);
+  m.q = CreateRowDataset(f, "q", nq, false, layout.expected_rows);
+  m.v = CreateRowDataset(f, "v", nq, false, layout.expected_rows);
+  m.a = CreateRowDataset(f, "a", nq, false, layout.expected_rows);
+  m.lambda = CreateRowDataset(f, "lambda", nc, false, layout.expected_rows);
   WriteStrings(f, "q_names", layout.q_names);
   WriteStrings(f, "lambda_names", layout.lambda_names);
 
   Handle bodies = CreateGroup(f, "bodies");
   for (const auto& name : layout.bodies) {
     Handle g = CreateGroup(bodies.get(), name);
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "position", 3, false));
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "orientation", 4, false));
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "velocity", 3, false));
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "angular_velocity", 3, false));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "position", 3, false, layout.expected_rows));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "orientation", 4, false, layout.expected_rows));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "velocity", 3, false, layout.expected_rows));
+    m.body_datasets.push_back(CreateRowDataset(g.get(), "angular_velocity", 3, false, layout.expected_rows));
   }
   Handle measures = CreateGroup(f, "measures");
   for (const auto& name : layout.measures)
-    m.measures.push_back(CreateRowDataset(measures.get(), name, 0, true));
+    m.measures.push_back(CreateRowDataset(measures.get(), name, 0, true, layout.expected_rows));
   Handle joints = CreateGroup(f, "joints");
   for (const auto& name : layout.joints) {
     Handle g = CreateGroup(joints.get(), name);
-    m.joints.push_back(CreateRowDataset(g.get(), "force", 3, false));
-    m.joints.push_back(CreateRowDataset(g.get(), "torque", 3, false));
+    m.joints.push_back(CreateRowDataset(g.get(), "force", 3, false, layout.expected_rows));
+    m.joints.push_back(CreateRowDataset(g.get(), "torque", 3, false, layout.expected_rows));
   }
   for (const auto& name : layout.efforts) {
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
-    m.efforts.push_back(CreateRowDataset(g.get(), "effort", 0, true));
+    m.efforts.push_back(CreateRowDataset(g.get(), "effort", 0, true, layout.expected_rows));
   }
   for (const auto& name : layout.joint_coordinates) {
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
     for (const char* d : {"position", "rate", "acceleration", "generalized_force"})
-      m.joint_coordinates.push_back(CreateRowDataset(g.get(), d, 0, true));
+      m.joint_coordinates.push_back(CreateRowDataset(g.get(), d, 0, true, layout.expected_rows));
   }
   Handle forces = CreateGroup(f, "forces");
   for (const auto& name : layout.forces) {
     Handle g = CreateGroup(forces.get(), name);
-    m.forces.push_back(CreateRowDataset(g.get(), "force", 3, false));
-    m.forces.push_back(CreateRowDataset(g.get(), "torque", 3, false));
+    m.forces.push_back(CreateRowDataset(g.get(), "force", 3, false, layout.expected_rows));
+    m.forces.push_back(CreateRowDataset(g.get(), "torque", 3, false, layout.expected_rows));
   }
   Handle energy = CreateGroup(f, "energy");
-  m.kinetic = CreateRowDataset(energy.get(), "kinetic", 0, true);
-  m.potential = CreateRowDataset(energy.get(), "potential", 0, true);
+  m.kinetic = CreateRowDataset(energy.get(), "kinetic", 0, true, layout.expected_rows);
+  m.potential = CreateRowDataset(energy.get(), "potential", 0, true, layout.expected_rows);
   Handle violation = CreateGroup(f, "violation");
-  m.position_violation = CreateRowDataset(violation.get(), "position", 0, true);
-  m.velocity_violation = CreateRowDataset(violation.get(), "velocity", 0, true);
+  m.position_violation = CreateRowDataset(violation.get(), "position", 0, true, layout.expected_rows);
+  m.velocity_violation = CreateRowDataset(violation.get(), "velocity", 0, true, layout.expected_rows);
   SetAttribute("format", 1L);
   Flush();
 }

@@ -278,6 +278,48 @@ TEST(ResultsFile, BufferedRowsAreWrittenInOrderAtFlush) {
   std::remove(path.c_str());
 }
 
+// The chunks hold at most the expected rows (a short run of a large model does not
+// allocate 8 KiB per dataset); more rows than expected are still written and read back.
+TEST(ResultsFile, ChunksFollowTheExpectedRows) {
+  auto chunk_rows = [](hid_t file, const std::string& name) {
+    hid_t ds = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+    hid_t plist = H5Dget_create_plist(ds);
+    hsize_t chunk[2] = {0, 0};
+    EXPECT_GE(H5Pget_chunk(plist, 2, chunk), 1) << name;
+    H5Pclose(plist);
+    H5Dclose(ds);
+    return chunk[0];
+  };
+  for (long expected : {0L, 3L}) {
+    const std::string path = TempPath("chunks" + std::to_string(expected));
+    ResultsLayout layout = SmallLayout();
+    layout.expected_rows = expected;
+    {
+      ResultsFile file(path, layout);
+      for (int k = 0; k < 7; ++k) {
+        RowData d(k);
+        file.AppendRow(d.Row(0.25 * k));
+      }
+    }
+    hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    // Unknown: about 8 KiB, at least 16 rows (1-D: 1024 rows, 3 columns: 341).
+    EXPECT_EQ(chunk_rows(f, "/time"), expected == 0 ? 1024u : 3u);
+    EXPECT_EQ(chunk_rows(f, "/joints/hinge/torque"), expected == 0 ? 341u : 3u);
+    std::vector<hsize_t> dims;
+    auto time = ReadDoubles(f, "/time", &dims);
+    ASSERT_EQ(dims, std::vector<hsize_t>({7}));
+    auto jt = ReadDoubles(f, "/joints/hinge/torque", &dims);
+    ASSERT_EQ(dims, std::vector<hsize_t>({7, 3}));
+    for (int k = 0; k < 7; ++k) {
+      EXPECT_DOUBLE_EQ(time[k], 0.25 * k);
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(jt[3 * k + c], 1000.0 * k + 603 + c);
+    }
+    H5Fclose(f);
+    std::remove(path.c_str());
+  }
+}
+
 // No constraints, no measures: zero-width datasets are still well formed.
 TEST(ResultsFile, EmptyLayoutParts) {
   const std::string path = TempPath("empty");
