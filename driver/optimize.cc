@@ -184,7 +184,7 @@ void ReadIpoptOptions(const ProblemReader& r, const YAML::Node& node, std::vecto
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = new Ipopt::IpoptApplication(false);
   for (auto it = node.begin(); it != node.end(); ++it) {
     const std::string name = it->first.as<std::string>();
-    const YAML::Node& v = it->second;
+    const YAML::Node v = it->second;  // a copy: it->second lives only in this statement
     const std::string what = "option '" + name + "'";
     Ipopt::SmartPtr<const Ipopt::RegisteredOption> reg = app->RegOptions()->GetOption(name);
     if (!Ipopt::IsValid(reg)) r.Fail(it->first, element, "unknown Ipopt option '" + name + "'");

@@ -482,10 +482,10 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
   auto add_terms = [&](int n, bool terminal) {
     auto target = [&](int j) {
       ObjectiveGradient g;
-      g.dq = &sig.q[size_t(j) * nq_];
-      g.dv = &sig.v[size_t(j) * nq_];
-      g.da = &sig.a[size_t(j) * nq_];
-      g.dlambda = &sig.l[size_t(j) * nc_];
+      g.dq = sig.q.data() + size_t(j) * nq_;
+      g.dv = sig.v.data() + size_t(j) * nq_;
+      g.da = sig.a.data() + size_t(j) * nq_;
+      g.dlambda = sig.l.data() + size_t(j) * nc_;
       g.dp = &out->gradient[size_t(j) * np_];
       return g;
     };
@@ -504,12 +504,12 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
     const double h = traj_.h(k), r = Ratio(k);
     prev.Zero();
     for (int j = 0; j < no_; ++j) {
-      const double* Sq = &sig.q[size_t(j) * nq_];
-      const double* Sv = &sig.v[size_t(j) * nq_];
-      const double* Sa = &sig.a[size_t(j) * nq_];
-      const double* Sab = &sig.ab[size_t(j) * nq_];
-      const double* Sl = &sig.l[size_t(j) * nc_];
-      const double* Swb = &sig.wb[size_t(j) * 3 * ng];
+      const double* Sq = sig.q.data() + size_t(j) * nq_;
+      const double* Sv = sig.v.data() + size_t(j) * nq_;
+      const double* Sa = sig.a.data() + size_t(j) * nq_;
+      const double* Sab = sig.ab.data() + size_t(j) * nq_;
+      const double* Sl = sig.l.data() + size_t(j) * nc_;
+      const double* Swb = sig.wb.data() + size_t(j) * 3 * ng;
       // b = Phi_u^T sigma.
       std::fill(rhs.begin(), rhs.end(), 0.0);
       for (int i = 0; i < nq_; ++i) rhs[i] = Sa[i] + (sc_.eq && !quat_[i] ? (1 + sc_.alpha) * Sab[i] : 0.0);
@@ -594,12 +594,12 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
   // The initial state: abar_0 = a_0, wbar_0 = 2 G(e_0) a_0 per group.
   for (int j = 0; j < no_; ++j) {
     double* gp = &out->gradient[size_t(j) * np_];
-    const double* Sq = &sig.q[size_t(j) * nq_];
-    const double* Sv = &sig.v[size_t(j) * nq_];
-    const double* Sa = &sig.a[size_t(j) * nq_];
-    const double* Sab = &sig.ab[size_t(j) * nq_];
-    const double* Sl = &sig.l[size_t(j) * nc_];
-    const double* Swb = &sig.wb[size_t(j) * 3 * ng];
+    const double* Sq = sig.q.data() + size_t(j) * nq_;
+    const double* Sv = sig.v.data() + size_t(j) * nq_;
+    const double* Sa = sig.a.data() + size_t(j) * nq_;
+    const double* Sab = sig.ab.data() + size_t(j) * nq_;
+    const double* Sl = sig.l.data() + size_t(j) * nc_;
+    const double* Swb = sig.wb.data() + size_t(j) * 3 * ng;
     for (int k = 0; k < np_; ++k) {
       const double* dq = &dx0.dq[size_t(k) * nq_];
       const double* dv = &dx0.dv[size_t(k) * nq_];
