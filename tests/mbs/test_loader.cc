@@ -349,7 +349,7 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {t_end: 0}\n"), "simulation: t_end must be > 0, got 0"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {ida: {rtol: -1}}\n"), "ida rtol must be > 0"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {integrator: rk4}\n"),
-                       "simulation: unknown integrator 'rk4' (allowed: hht, ida, kinematic, erk)"));
+                       "simulation: unknown integrator 'rk4'; did you mean 'erk'? (allowed: hht, ida, kinematic, erk)"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {hht: {adaptive: maybe}}\n"), "'adaptive' must be true or false"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nmeasures: [{name: k, type: translational, i: b.cm, component: x}]\nparameters: {k: 1}\n"),
                        "parameter 'k': a measure has the same name"));
