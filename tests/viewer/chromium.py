@@ -61,7 +61,12 @@ class Browser:
                 "--hide-scrollbars", "--mute-audio", "--force-device-scale-factor=1",
                 f"--window-size={self.width},{self.height}",
                 f"--user-data-dir={self.profile}", "about:blank"]
-        self.proc = subprocess.Popen(args, preexec_fn=child_fds, pass_fds=(3, 4),
+        # The browser is not ours: it runs without the sanitizer runtime that
+        # scripts/sanitize.sh preloads into the Python tests (under it Chromium does not
+        # answer within the time limit).
+        env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "ASAN_OPTIONS",
+                                                                 "LSAN_OPTIONS", "UBSAN_OPTIONS")}
+        self.proc = subprocess.Popen(args, preexec_fn=child_fds, pass_fds=(3, 4), env=env,
                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                      stderr=subprocess.DEVNULL)
         os.close(to_browser_r)
