@@ -537,12 +537,12 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
         sq[i] = Sq[i] - rq_[i];
         sv[i] = Sv[i] - rv_[i];
       }
-      double* Pq = &prev.q[size_t(j) * nq_];
-      double* Pv = &prev.v[size_t(j) * nq_];
-      double* Pa = &prev.a[size_t(j) * nq_];
-      double* Pab = &prev.ab[size_t(j) * nq_];
-      double* Pl = &prev.l[size_t(j) * nc_];
-      double* Pwb = &prev.wb[size_t(j) * 3 * ng];
+      double* Pq = prev.q.data() + size_t(j) * nq_;
+      double* Pv = prev.v.data() + size_t(j) * nq_;
+      double* Pa = prev.a.data() + size_t(j) * nq_;
+      double* Pab = prev.ab.data() + size_t(j) * nq_;
+      double* Pl = prev.l.data() + size_t(j) * nc_;
+      double* Pwb = prev.wb.data() + size_t(j) * 3 * ng;
       for (int i = 0; i < nq_; ++i) {
         if (quat_[i]) continue;
         Pq[i] += sq[i];
@@ -601,10 +601,10 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
     const double* Sl = sig.l.data() + size_t(j) * nc_;
     const double* Swb = sig.wb.data() + size_t(j) * 3 * ng;
     for (int k = 0; k < np_; ++k) {
-      const double* dq = &dx0.dq[size_t(k) * nq_];
-      const double* dv = &dx0.dv[size_t(k) * nq_];
-      const double* da = &dx0.da[size_t(k) * nq_];
-      const double* dl = &dx0.dlambda[size_t(k) * nc_];
+      const double* dq = dx0.dq.data() + size_t(k) * nq_;
+      const double* dv = dx0.dv.data() + size_t(k) * nq_;
+      const double* da = dx0.da.data() + size_t(k) * nq_;
+      const double* dl = dx0.dlambda.data() + size_t(k) * nc_;
       double sum = 0;
       for (int i = 0; i < nq_; ++i) sum += Sq[i] * dq[i] + Sv[i] * dv[i] + (Sa[i] + Sab[i]) * da[i];
       for (int c = 0; c < nc_; ++c) sum += Sl[c] * dl[c];
@@ -642,8 +642,8 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
     for (int grp = 0; grp < ng && sc_.eq; ++grp) {
       const int g = groups_[grp];
       double w1[3], w2[3];
-      Gx(&ds.q[size_t(k) * nq_ + g], win_.a(0) + g, w1);
-      Gx(win_.q(0) + g, &ds.a[size_t(k) * nq_ + g], w2);
+      Gx(ds.q.data() + size_t(k) * nq_ + g, win_.a(0) + g, w1);
+      Gx(win_.q(0) + g, ds.a.data() + size_t(k) * nq_ + g, w2);
       for (int i = 0; i < 3; ++i) ds.wb[size_t(k) * 3 * ng + 3 * grp + i] = 2 * (w1[i] + w2[i]);
     }
   // dG += (w grad g + [terminal] grad phi) . ds_n + partials in p.
@@ -682,10 +682,10 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
     const double h = traj_.h(k), r = Ratio(k);
     for (int p = 0; p < np_; ++p) {
       const size_t oq = size_t(p) * nq_, oc = size_t(p) * nc_, ow = size_t(p) * 3 * ng;
-      const double* dq = &ds.q[oq];
-      const double* dv = &ds.v[oq];
-      const double* da = &ds.a[oq];
-      const double* dab = &ds.ab[oq];
+      const double* dq = ds.q.data() + oq;
+      const double* dv = ds.v.data() + oq;
+      const double* da = ds.a.data() + oq;
+      const double* dab = ds.ab.data() + oq;
       // Explicit part of q_k, v_k (a_k held).
       for (int i = 0; i < nq_; ++i) {
         const double a0 = sc_.eq ? (1 - r) * da[i] + r * dab[i] : da[i];
@@ -721,7 +721,7 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
         sm_prev_.Mul(Matrix::kConstraintTDq, c, dq, rhs.data());
         sm_prev_.Mul(Matrix::kForceDq, -c, dq, rhs.data());
         sm_prev_.Mul(Matrix::kForceDv, -c, dv, rhs.data());
-        sm_prev_.MulT(Matrix::kConstraintDq, c, &ds.l[oc], rhs.data());
+        sm_prev_.MulT(Matrix::kConstraintDq, c, ds.l.data() + oc, rhs.data());
         sm_prev_.AddColumn(ParameterMatrix::kConstraintTDp, p, c, rhs.data());
         sm_prev_.AddColumn(ParameterMatrix::kForceDp, p, -c, rhs.data());
       }
@@ -729,10 +729,10 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       if (!Solve(h, false, rhs.data(), error)) return false;
       // ds_k = explicit + Phi_u du.
       PhiA(h, rhs.data(), dqa.data(), dva.data());
-      double* nq = &dn.q[oq];
-      double* nv = &dn.v[oq];
-      double* na = &dn.a[oq];
-      double* nab = &dn.ab[oq];
+      double* nq = dn.q.data() + oq;
+      double* nv = dn.v.data() + oq;
+      double* na = dn.a.data() + oq;
+      double* nab = dn.ab.data() + oq;
       for (int i = 0; i < nq_; ++i) {
         nq[i] = dqe[i] + dqa[i];
         nv[i] = dve[i] + dva[i];
