@@ -13,40 +13,21 @@
 
 #include "dae/consistent.h"
 #include "tests/support/free_body_system.h"
+#include "tests/support/integrator_cases.h"
 #include "tests/support/nonlinear_system.h"
 #include "tests/support/pendulum_system.h"
 
 namespace mbdae::dae {
 namespace {
 
+using testing::ConsistentState;
+using testing::EllipticK;
+using testing::FailingPendulum;
 using testing::FreeBodySystem;
 using testing::NonlinearSystem;
 using testing::PendulumSystem;
 
 constexpr double kPi = 3.14159265358979323846;
-
-State ConsistentState(MechanicalSystem& sys, std::vector<double> q, std::vector<double> v,
-                      double t = 0) {
-  State x;
-  x.t = t;
-  x.q = std::move(q);
-  x.v = std::move(v);
-  const auto report = MakeConsistent(sys, x);
-  EXPECT_TRUE(report.ok) << report.message;
-  return x;
-}
-
-// Complete elliptic integral of the first kind by the arithmetic-geometric mean
-// (Abramowitz & Stegun 17.6).
-double EllipticK(double k) {
-  double a = 1.0, b = std::sqrt(1.0 - k * k);
-  for (int i = 0; i < 50 && std::abs(a - b) > 1e-16 * a; ++i) {
-    const double an = 0.5 * (a + b);
-    b = std::sqrt(a * b);
-    a = an;
-  }
-  return kPi / (2 * a);
-}
 
 // The pendulum's angle from the downward vertical, theta'' = -(g/L) sin theta, by the
 // classical 4th-order Runge-Kutta method with 20000 steps per second (error below 1e-14
@@ -266,20 +247,6 @@ TEST(ErkIntegrator, QuadratureMatchesClosedForms) {
   }
   std::printf("quadrature: max relative error against the closed forms %.2e\n", max_err);
 }
-
-class FailingPendulum : public PendulumSystem {
- public:
-  FailingPendulum(double t_fail, int code) : PendulumSystem(1, 1, 9.81), t_fail_(t_fail), code_(code) {}
-  int Evaluate(const EvalInput& in, EvalOutput& out) override {
-    if (in.t > t_fail_) return code_;
-    return PendulumSystem::Evaluate(in, out);
-  }
-  const char* last_error() const override { return "joint 7 broke"; }
-
- private:
-  double t_fail_;
-  int code_;
-};
 
 TEST(ErkIntegrator, FailuresAreReported) {
   for (int code : {-1, 1}) {

@@ -13,6 +13,7 @@
 
 #include "dae/consistent.h"
 #include "dae/ida_internal.h"
+#include "tests/support/integrator_cases.h"
 #include "tests/support/nonlinear_system.h"
 #include "tests/support/parametric_pendulum.h"
 #include "tests/support/pendulum_system.h"
@@ -20,33 +21,13 @@
 namespace mbdae::dae {
 namespace {
 
+using testing::ConsistentState;
+using testing::EllipticK;
+using testing::FailingPendulum;
 using testing::NonlinearSystem;
 using testing::PendulumSystem;
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Complete elliptic integral of the first kind by the arithmetic-geometric mean:
-// K(k) = pi / (2 AGM(1, sqrt(1 - k^2))) (Abramowitz & Stegun 17.6).
-double EllipticK(double k) {
-  double a = 1.0, b = std::sqrt(1.0 - k * k);
-  for (int i = 0; i < 50 && std::abs(a - b) > 1e-16 * a; ++i) {
-    const double an = 0.5 * (a + b);
-    b = std::sqrt(a * b);
-    a = an;
-  }
-  return kPi / (2 * a);
-}
-
-State ConsistentState(MechanicalSystem& sys, std::vector<double> q, std::vector<double> v,
-                      double t = 0) {
-  State x;
-  x.t = t;
-  x.q = std::move(q);
-  x.v = std::move(v);
-  const auto report = MakeConsistent(sys, x);
-  EXPECT_TRUE(report.ok) << report.message;
-  return x;
-}
 
 // dF/dy + cj dF/dy' of the GGL residual against central differences at random points.
 void CheckJacobian(MechanicalSystem& sys, unsigned seed) {
@@ -261,21 +242,6 @@ TEST(IdaIntegrator, SameRunTwiceGivesIdenticalResults) {
   for (int k = 1; k <= 5; ++k) ASSERT_TRUE(other->AdvanceTo(0.2 * k));
   for (int i = 0; i < 3; ++i) EXPECT_EQ(other->state().q[i], first.back().q[i]);
 }
-
-// A pendulum whose evaluation fails beyond a given time.
-class FailingPendulum : public PendulumSystem {
- public:
-  FailingPendulum(double t_fail, int code) : PendulumSystem(1, 1, 9.81), t_fail_(t_fail), code_(code) {}
-  int Evaluate(const EvalInput& in, EvalOutput& out) override {
-    if (in.t > t_fail_) return code_;
-    return PendulumSystem::Evaluate(in, out);
-  }
-  const char* last_error() const override { return "joint 7 broke"; }
-
- private:
-  double t_fail_;
-  int code_;
-};
 
 TEST(IdaIntegrator, SystemFailureIsReported) {
   for (int code : {-1, 1}) {

@@ -247,6 +247,19 @@ TEST(ResultsFile, RowsSurviveAKilledWriter) {
 
 // With a flush interval, rows wait in memory until the next flush (or the end), and
 // then land in order.
+// The time and the hinge torque of rows k = 0..6 written from RowData(k) at t = 0.25 k.
+void ExpectSevenRows(hid_t f) {
+  std::vector<hsize_t> dims;
+  auto time = ReadDoubles(f, "/time", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({7}));
+  auto jt = ReadDoubles(f, "/joints/hinge/torque", &dims);
+  ASSERT_EQ(dims, std::vector<hsize_t>({7, 3}));
+  for (int k = 0; k < 7; ++k) {
+    EXPECT_DOUBLE_EQ(time[k], 0.25 * k);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(jt[3 * k + c], 1000.0 * k + 603 + c);
+  }
+}
+
 TEST(ResultsFile, BufferedRowsAreWrittenInOrderAtFlush) {
   const std::string path = TempPath("buffered");
   {
@@ -265,15 +278,7 @@ TEST(ResultsFile, BufferedRowsAreWrittenInOrderAtFlush) {
   }  // the destructor writes the last three
   hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   ASSERT_GE(f, 0);
-  std::vector<hsize_t> dims;
-  auto time = ReadDoubles(f, "/time", &dims);
-  ASSERT_EQ(dims, std::vector<hsize_t>({7}));
-  auto jt = ReadDoubles(f, "/joints/hinge/torque", &dims);
-  ASSERT_EQ(dims, std::vector<hsize_t>({7, 3}));
-  for (int k = 0; k < 7; ++k) {
-    EXPECT_DOUBLE_EQ(time[k], 0.25 * k);
-    for (int c = 0; c < 3; ++c) EXPECT_EQ(jt[3 * k + c], 1000.0 * k + 603 + c);
-  }
+  ExpectSevenRows(f);
   H5Fclose(f);
   std::remove(path.c_str());
 }
@@ -306,15 +311,7 @@ TEST(ResultsFile, ChunksFollowTheExpectedRows) {
     // Unknown: about 8 KiB, at least 16 rows (1-D: 1024 rows, 3 columns: 341).
     EXPECT_EQ(chunk_rows(f, "/time"), expected == 0 ? 1024u : 3u);
     EXPECT_EQ(chunk_rows(f, "/joints/hinge/torque"), expected == 0 ? 341u : 3u);
-    std::vector<hsize_t> dims;
-    auto time = ReadDoubles(f, "/time", &dims);
-    ASSERT_EQ(dims, std::vector<hsize_t>({7}));
-    auto jt = ReadDoubles(f, "/joints/hinge/torque", &dims);
-    ASSERT_EQ(dims, std::vector<hsize_t>({7, 3}));
-    for (int k = 0; k < 7; ++k) {
-      EXPECT_DOUBLE_EQ(time[k], 0.25 * k);
-      for (int c = 0; c < 3; ++c) EXPECT_EQ(jt[3 * k + c], 1000.0 * k + 603 + c);
-    }
+    ExpectSevenRows(f);
     H5Fclose(f);
     std::remove(path.c_str());
   }
