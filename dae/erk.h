@@ -12,9 +12,13 @@
 // kinetic-energy norm), with the matrix of the step's last stage:
 //   [M C_q^T; C_q 0] [dq; mu] = [0; -C(q)],   [M C_q^T; C_q 0] [dv; mu] = [0; -(C_q v + C_t)]
 // (coordinate projection, Hairer, Lubich, Wanner, Geometric Numerical Integration,
-// 2nd ed., Springer 2006, IV.4; Hairer & Wanner, Solving ODEs II, VII.2), and a and
-// lambda are solved afresh at the projected state: every state() is consistent at all
-// three levels and its a and lambda are those the acceleration-level equations give.
+// 2nd ed., Springer 2006, IV.4; Hairer & Wanner, Solving ODEs II, VII.2). A step costs 6
+// factorisations: the next step's first stage is the last stage (first same as last), at
+// the 5th-order solution before its projection. At the end of AdvanceTo a and lambda are
+// solved afresh at the projected state (one more factorisation per call): the state() a
+// successful AdvanceTo leaves is consistent at all three levels and its a and lambda are
+// those the acceleration-level equations give. After a failed AdvanceTo, state() is the
+// last accepted step's, with the a and lambda of its last stage (O(local error) away).
 //
 // For smooth non-stiff scenes (open chains, free bodies, mechanisms away from singular
 // positions) it takes far fewer steps than the second-order HHT or a BDF at tight
