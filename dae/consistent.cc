@@ -26,6 +26,7 @@
 #include <stdexcept>
 
 #include "dae/klu_solver.h"
+#include "dae/tree_kkt.h"
 
 namespace mbdae::dae {
 
@@ -516,6 +517,12 @@ ConsistencyReport MakeConsistent(MechanicalSystem& system, State& x,
 
 namespace mbdae::dae {
 
+namespace {
+// The tree elimination's pivot ratio below which KLU factorises instead (consistent.h).
+constexpr double kMinTreeRcond = 1e-14;
+constexpr double kTreeRcondDrop = 1e-6;  // relative to its first factorisation
+}  // namespace
+
 struct AccelerationSolver::Impl {
   MechanicalSystem& system;
   int nq = 0, nc = 0;
@@ -523,10 +530,20 @@ struct AccelerationSolver::Impl {
   int b_m = 0, b_ct = 0, b_c = 0;
   std::vector<double> mass, cq, values, sol, gamma;
   std::unique_ptr<KluSolver> klu;
-  std::string error;
+  std::unique_ptr<TreeKktSolver> tree;
+  std::string error, tree_refusal = "not requested";
+  bool used_tree = false;
+  double tree_rcond_first = 0;
+  long klu_fallbacks = 0;
 
-  Impl(MechanicalSystem& s, int growth_check_interval)
+  Impl(MechanicalSystem& s, int growth_check_interval, bool tree_elimination)
       : system(s), nq(s.num_coordinates()), nc(s.num_constraints()) {
+    if (tree_elimination) {
+      tree = TreeKktSolver::Analyze(system.pattern(Matrix::kMass),
+                                    system.pattern(Matrix::kConstraintDq), kMaxTreeNode,
+                                    &tree_refusal);
+      if (tree) tree_refusal.clear();
+    }
     const CscPattern& pm = system.pattern(Matrix::kMass);
     const CscPattern& pc = system.pattern(Matrix::kConstraintDq);
     b_m = kkt.AddBlock(pm, 0, 0);
@@ -543,18 +560,29 @@ struct AccelerationSolver::Impl {
 };
 
 AccelerationSolver::AccelerationSolver(MechanicalSystem& system)
-    : impl_(std::make_unique<Impl>(system, 1)) {}
+    : impl_(std::make_unique<Impl>(system, 1, false)) {}
 AccelerationSolver::AccelerationSolver(MechanicalSystem& system, int growth_check_interval)
-    : impl_(std::make_unique<Impl>(system, growth_check_interval)) {}
+    : impl_(std::make_unique<Impl>(system, growth_check_interval, false)) {}
+AccelerationSolver::AccelerationSolver(MechanicalSystem& system, int growth_check_interval,
+                                       bool tree_elimination)
+    : impl_(std::make_unique<Impl>(system, growth_check_interval, tree_elimination)) {}
 AccelerationSolver::~AccelerationSolver() = default;
 const std::string& AccelerationSolver::last_error() const { return impl_->error; }
+bool AccelerationSolver::used_tree() const { return impl_->used_tree; }
+const std::string& AccelerationSolver::tree_refusal() const { return impl_->tree_refusal; }
+long AccelerationSolver::klu_fallbacks() const { return impl_->klu_fallbacks; }
 
 void AccelerationSolver::MultiplyConstraintJacobian(const double* x, double* y) const {
   std::fill(y, y + impl_->nc, 0.0);
   MultiplyAdd(impl_->system.pattern(Matrix::kConstraintDq), impl_->cq.data(), 1.0, x, y);
 }
 
-void AccelerationSolver::SolveAgain(double* rhs) const { impl_->klu->Solve(rhs); }
+void AccelerationSolver::SolveAgain(double* rhs) const {
+  if (impl_->used_tree)
+    impl_->tree->Solve(rhs);
+  else
+    impl_->klu->Solve(rhs);
+}
 
 int AccelerationSolver::Solve(double t, const double* q, const double* v, double* a,
                               double* lambda) {
@@ -575,6 +603,30 @@ int AccelerationSolver::Solve(double t, const double* q, const double* v, double
     return rc;
   }
   std::copy(m.gamma.begin(), m.gamma.end(), m.sol.begin() + m.nq);
+  if (m.tree) {
+    // The rule of the class comment: the tree's pivots, else KLU.
+    if (m.tree->Factor(m.mass.data(), m.cq.data())) {
+      const double rc = m.tree->rcond();
+      if (m.tree_rcond_first == 0 && rc > kMinTreeRcond) m.tree_rcond_first = rc;
+      if (std::isfinite(rc) && rc > kMinTreeRcond && rc > kTreeRcondDrop * m.tree_rcond_first) {
+        m.tree->Solve(m.sol.data());
+        m.used_tree = true;
+        std::copy(m.sol.begin(), m.sol.begin() + m.nq, a);
+        std::copy(m.sol.begin() + m.nq, m.sol.end(), lambda);
+        return 0;
+      }
+    }
+    ++m.klu_fallbacks;
+    if (m.tree_rcond_first == 0) {
+      // The first factorisation failed: a loop closed through the ground (bodies tied to
+      // the ground at two places are not a tree, though Analyze sees none) or a singular
+      // start. KLU from here on.
+      m.tree.reset();
+      m.tree_refusal = "the tree elimination failed at the first state (a loop closed "
+                       "through the ground, or a singular position)";
+    }
+  }
+  m.used_tree = false;
   std::fill(m.values.begin(), m.values.end(), 0.0);
   m.kkt.Accumulate(m.b_m, m.mass.data(), 1.0, m.values.data());
   m.kkt.Accumulate(m.b_ct, m.cq.data(), 1.0, m.values.data());

@@ -58,11 +58,24 @@ std::unique_ptr<MechanicalSystem> KeepConstraints(MechanicalSystem& base, std::v
 // call when KLU can). The system's constraints must be independent (a KeepConstraints
 // view). Used for the consistent a and lambda of MakeConsistent, the output rows of the
 // driver (a and lambda determined by (t, q, v) alone) and the perturbed start of HHT.
+//
+// With tree_elimination, the matrix is factorised by block elimination along the tree of
+// bodies and joints (dae/tree_kkt.h, linear in the number of bodies) when the patterns
+// form one; KLU factorises it instead (a) when they do not (closed loops, bodies of more
+// than kMaxTreeNode unknowns, e.g. joint coordinates: tree_refusal() says why; decided
+// once at construction), (b) for good when the first factorisation fails (a loop closed
+// through the ground: two bodies tied to the ground and to each other are a tree in the
+// patterns, but eliminating them meets a zero pivot) and (c) at a state where the
+// elimination meets a zero pivot or its pivot ratio min |U_ii| / max |U_ii| is below
+// 1e-14 or below 1e-6 times that of its first factorisation (a near-singular position).
+// klu_fallbacks() counts (b) and (c).
 class AccelerationSolver {
  public:
+  static constexpr int kMaxTreeNode = 48;
   explicit AccelerationSolver(MechanicalSystem& system);
   // growth_check_interval: see KluSolver (1: the pivot growth checked at every solve).
   AccelerationSolver(MechanicalSystem& system, int growth_check_interval);
+  AccelerationSolver(MechanicalSystem& system, int growth_check_interval, bool tree_elimination);
   ~AccelerationSolver();
   AccelerationSolver(const AccelerationSolver&) = delete;
   AccelerationSolver& operator=(const AccelerationSolver&) = delete;
@@ -76,6 +89,12 @@ class AccelerationSolver {
   void MultiplyConstraintJacobian(const double* x, double* y) const;
   void SolveAgain(double* rhs) const;
   const std::string& last_error() const;
+  // Whether the last successful Solve used the tree elimination (else KLU).
+  bool used_tree() const;
+  // Empty when the tree elimination is available; else why not (or "not requested").
+  const std::string& tree_refusal() const;
+  // Solves that fell back from the tree elimination to KLU at a near-singular state.
+  long klu_fallbacks() const;
 
  private:
   struct Impl;

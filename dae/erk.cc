@@ -55,8 +55,9 @@ constexpr int kGrowthCheckInterval = kStages - 1;
 class ErkIntegrator final : public Integrator {
  public:
   ErkIntegrator(MechanicalSystem& system, const ErkOptions& options)
-      : sys_(system), opt_(options), acc_(system, kGrowthCheckInterval), nq_(system.num_coordinates()),
-        nc_(system.num_constraints()) {
+      : sys_(system), opt_(options),
+        acc_(system, kGrowthCheckInterval, /*tree_elimination=*/true),
+        nq_(system.num_coordinates()), nc_(system.num_constraints()) {
     std::string why;
     if (!opt_.IsValid(&why)) throw std::invalid_argument(why);
     for (int s = 0; s < kStages; ++s) {
