@@ -448,7 +448,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, ida.rtol, ida.atol, ida.max_steps, ida.min_step, gradient.fd_step, gradient.newton_factor, "
+    "hht.modified, hht.form, hht.dense_output, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 }  // namespace
@@ -505,6 +505,10 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.hht_tolerance = ParseOptionNumber(key, value);
   } else if (key == "hht.modified") {
     o.hht_modified = ParseOptionBool(key, value);
+  } else if (key == "hht.dense_output") {
+    o.hht_dense_output = ParseOptionBool(key, value);
+  } else if (key == "ida.dense_output") {
+    o.ida_dense_output = ParseOptionBool(key, value);
   } else if (key == "hht.form") {
     const std::string v = value;
     if (v != "equilibrium" && v != "negrut")
@@ -562,6 +566,8 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.adaptive") return boolean(s.hht_adaptive);
   if (key == "hht.tolerance") return Num(s.hht_tolerance);
   if (key == "hht.modified") return boolean(s.hht_modified);
+  if (key == "hht.dense_output") return boolean(s.hht_dense_output);
+  if (key == "ida.dense_output") return boolean(s.ida_dense_output);
   if (key == "hht.form") return s.hht_form;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);

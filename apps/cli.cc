@@ -213,6 +213,14 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       only_simulate();
       no_value();
       cl.overrides.hht_modified = false;
+    } else if (arg == "--dense-output") {
+      only_simulate();
+      no_value();
+      cl.overrides.hht_dense_output = cl.overrides.ida_dense_output = true;
+    } else if (arg == "--no-dense-output") {
+      only_simulate();
+      no_value();
+      cl.overrides.hht_dense_output = cl.overrides.ida_dense_output = false;
     } else if (arg == "--hht-form") {
       only_simulate();
       cl.overrides.hht_form = choice({"equilibrium", "negrut"});

@@ -81,6 +81,9 @@ bool HhtOptions::IsValid(std::string* error) const {
   if (max_steps_same_jacobian < 1) return fail("max_steps_same_jacobian must be >= 1");
   for (double h : replay_steps)
     if (!(h > 0) || !std::isfinite(h)) return fail("replay_steps must be positive and finite");
+  if (dense_output && !replay_steps.empty())
+    return fail("dense_output and replay_steps exclude each other (a replay lands on its targets)");
+  if (std::isnan(stop_time)) return fail("stop_time must not be NaN");
   return true;
 }
 
@@ -253,6 +256,11 @@ class HhtIntegrator final : public Integrator {
     res_.assign(n, 0.0);
     x_.assign(n, 0.0);
     state_.Resize(nq_, nc_);
+    dense_ = opt_.dense_output;
+    if (dense_) {
+      prev_.Resize(nq_, nc_);
+      out_.Resize(nq_, nc_);
+    }
   }
 
   void Initialize(const State& x0) override {
@@ -299,10 +307,19 @@ class HhtIntegrator final : public Integrator {
       summary_.message = "quadrature integrand failed at the initial state";
       return;
     }
+    if (dense_) {
+      prev_ = state_;
+      out_ = state_;
+      quad_prev_ = quad_;
+      quad_out_ = quad_;
+    }
     if (observer_) observer_(state_, 0.0);
   }
 
   void SaveSnapshot(IntegratorSnapshot* out) const override {
+    if (dense_)
+      throw std::logic_error("HHT with dense output cannot save its state (SaveSnapshot): the "
+                             "state it reports is interpolated, not a step's");
     out->state = state_;
     const int ng = static_cast<int>(wbar_.size() / 3);
     out->history.resize(HhtHistory::Size(nq_, ng));
@@ -319,6 +336,8 @@ class HhtIntegrator final : public Integrator {
   }
 
   void RestoreSnapshot(const IntegratorSnapshot& x) override {
+    if (dense_)
+      throw std::logic_error("HHT with dense output cannot restore a state (RestoreSnapshot)");
     const int ng = static_cast<int>(wbar_.size() / 3);
     const State& s = x.state;
     if (static_cast<int>(s.q.size()) != nq_ || static_cast<int>(s.v.size()) != nq_ ||
@@ -376,9 +395,11 @@ class HhtIntegrator final : public Integrator {
     quad_.assign(quad_spec_.size, 0.0);
     quad_g_.assign(quad_spec_.size, 0.0);
     quad_g_new_.assign(quad_spec_.size, 0.0);
+    quad_prev_.assign(quad_spec_.size, 0.0);
+    quad_out_.assign(quad_spec_.size, 0.0);
     initialized_ = false;
   }
-  const std::vector<double>& quadrature() const override { return quad_; }
+  const std::vector<double>& quadrature() const override { return dense_ ? quad_out_ : quad_; }
   void SetStepObserver(StepObserver observer) override { observer_ = std::move(observer); }
 
   bool AdvanceTo(double t_target) override {
@@ -389,13 +410,17 @@ class HhtIntegrator final : public Integrator {
       }
       return false;
     }
-    if (!(t_target > state_.t)) {
-      if (t_target == state_.t) return true;
+    const double t_now = dense_ ? out_.t : state_.t;
+    if (!(t_target > t_now)) {
+      if (t_target == t_now) return true;
       summary_.status = Summary::Status::kFailed;
       summary_.message = "AdvanceTo: target " + Num(t_target) + " is before the current time " +
-                         Num(state_.t);
+                         Num(t_now);
       return false;
     }
+    if (dense_ && t_target > opt_.stop_time)
+      return Fail("AdvanceTo: target " + Num(t_target) + " is beyond the stop time " +
+                  Num(opt_.stop_time) + " (dense output)");
     summary_.status = Summary::Status::kRunning;
     const double h_nominal_fixed = opt_.max_step > 0 ? std::min(opt_.step, opt_.max_step) : opt_.step;
     // Step budget of this call (max_steps_per_call, plus the steps the nominal step needs).
@@ -404,6 +429,8 @@ class HhtIntegrator final : public Integrator {
                               : std::numeric_limits<double>::infinity();
     double attempts = 0;
     if (!opt_.replay_steps.empty()) return Replay(t_target);
+    // The time the steps land on: the target, or with dense output the stop time.
+    const double t_land = dense_ ? opt_.stop_time : t_target;
     while (state_.t < t_target) {
       if (++attempts > budget)
         return Fail("more than " + Num(budget) + " step attempts between t = " + Num(state_.t) +
@@ -411,7 +438,7 @@ class HhtIntegrator final : public Integrator {
                     "): the step size collapsed; the multipliers or forces may be growing "
                     "without bound (HHT with alpha = 0 on constrained systems, a singular "
                     "configuration), or the problem needs a smaller tolerance or output step");
-      const double remaining = t_target - state_.t;
+      const double remaining = t_land - state_.t;
       double h = h_;
       bool last = false;
       if (remaining <= h * (1 + 1e-3)) {
@@ -455,18 +482,20 @@ class HhtIntegrator final : public Integrator {
         h_next = std::min(h_nominal_fixed, 2 * h_);
       }
       h_ = std::max(h_next, opt_.min_step);
-      if (!Accepted(h, last ? t_target : state_.t + h)) return false;
+      if (!Accepted(h, last ? t_land : state_.t + h)) return false;
     }
+    if (dense_) Interpolate(t_target);
     summary_.status = Summary::Status::kDone;
     summary_.message.clear();
     return true;
   }
 
-  const State& state() const override { return state_; }
+  const State& state() const override { return dense_ ? out_ : state_; }
   const Summary& summary() const override { return summary_; }
   std::string name() const override {
     return std::string(opt_.modified ? "HHT (modified for Euler parameters)" : "HHT") +
-           ", alpha = " + Num(alpha_) + ", form " + HhtFormName(opt_.form);
+           ", alpha = " + Num(alpha_) + ", form " + HhtFormName(opt_.form) +
+           (dense_ ? ", dense output" : "");
   }
 
  private:
@@ -523,7 +552,51 @@ class HhtIntegrator final : public Integrator {
     summary_.status = Summary::Status::kFailed;
     summary_.message = why;
     summary_.t_reached = state_.t;
+    if (dense_ && initialized_) {  // the last state reached is the last step's
+      out_ = state_;
+      quad_out_ = quad_;
+    }
     return false;
+  }
+
+  // Dense output: out_ (and quad_out_) at t in [prev_.t, state_.t] (HhtOptions::dense_output).
+  void Interpolate(double t) {
+    if (t >= state_.t || state_.t == prev_.t) {
+      out_ = state_;  // no allocation: same sizes
+      quad_out_ = quad_;
+      out_.t = t;
+      return;
+    }
+    const double h = state_.t - prev_.t;
+    const double s = std::max(0.0, (t - prev_.t) / h), s2 = s * s, s3 = s2 * s;
+    // Cubic Hermite basis on [0, 1].
+    const double h00 = 2 * s3 - 3 * s2 + 1, h10 = (s3 - 2 * s2 + s) * h;
+    const double h01 = 3 * s2 - 2 * s3, h11 = (s3 - s2) * h;
+    out_.t = t;
+    for (int i = 0; i < nq_; ++i) {
+      out_.q[i] = h00 * prev_.q[i] + h10 * prev_.v[i] + h01 * state_.q[i] + h11 * state_.v[i];
+      out_.v[i] = h00 * prev_.v[i] + h10 * prev_.a[i] + h01 * state_.v[i] + h11 * state_.a[i];
+      out_.a[i] = (1 - s) * prev_.a[i] + s * state_.a[i];
+    }
+    for (int j = 0; j < nc_; ++j) out_.lambda[j] = (1 - s) * prev_.lambda[j] + s * state_.lambda[j];
+    // Euler parameters: unit length, and their rate orthogonal to them.
+    for (int g : sys_.quaternion_offsets()) {
+      double* e = &out_.q[g];
+      double* ed = &out_.v[g];
+      const double n = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2] + e[3] * e[3]);
+      if (!(n > 0)) continue;
+      double dot = 0;
+      for (int k = 0; k < 4; ++k) {
+        e[k] /= n;
+        dot += e[k] * ed[k];
+      }
+      for (int k = 0; k < 4; ++k) ed[k] -= dot * e[k];
+    }
+    // The integral of the integrand's linear interpolant (g_n in quad_g_new_ after the
+    // swap of Accepted, g_{n+1} in quad_g_).
+    for (int k = 0; k < quad_spec_.size; ++k)
+      quad_out_[k] = quad_prev_[k] +
+                     h * s * (quad_g_new_[k] + 0.5 * s * (quad_g_[k] - quad_g_new_[k]));
   }
 
   // AdvanceTo with the steps of opt_.replay_steps.
@@ -553,6 +626,7 @@ class HhtIntegrator final : public Integrator {
   bool Accepted(double h, double t1) {
     Accept(h, t1);
     if (quad_spec_.size > 0) {
+      if (dense_) quad_prev_ = quad_;  // no allocation: same size
       // Trapezoidal rule over the accepted step.
       if (!EvaluateIntegrand(quad_g_new_.data()))
         return Fail("quadrature integrand failed at t = " + Num(state_.t));
@@ -852,6 +926,13 @@ class HhtIntegrator final : public Integrator {
   }
 
   void Accept(double h, double t1) {
+    if (dense_) {  // the step's start, for the interpolation (no allocation: same sizes)
+      prev_.t = state_.t;
+      prev_.q.swap(state_.q);
+      prev_.v.swap(state_.v);
+      prev_.a.swap(state_.a);
+      prev_.lambda.swap(state_.lambda);
+    }
     state_.t = t1;
     std::copy(qn_.begin(), qn_.end(), state_.q.begin());
     std::copy(vn_.begin(), vn_.end(), state_.v.begin());
@@ -891,6 +972,11 @@ class HhtIntegrator final : public Integrator {
   std::string message_;
   Quadrature quad_spec_;
   std::vector<double> quad_, quad_g_, quad_g_new_;  // integrals; integrand at t_n, t_{n+1}
+  // Dense output (HhtOptions::dense_output): the state before the last accepted step, the
+  // reported (interpolated) state, and the integrals at prev_ and at out_.
+  bool dense_ = false;
+  State prev_, out_;
+  std::vector<double> quad_prev_, quad_out_;
   StepObserver observer_;
   size_t replay_next_ = 0;  // next entry of opt_.replay_steps
   long step_index_ = 0;     // accepted steps since Initialize (carried by snapshots)

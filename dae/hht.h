@@ -4,6 +4,7 @@
 // Multibody Syst. Dyn. 46 (2019) 181-202.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -89,6 +90,20 @@ struct HhtOptions {
   // 1e-9 of a step) fails the run. For finite-difference references of adaptive runs
   // (the discrete objective of a frozen step sequence).
   std::vector<double> replay_steps;
+  // Dense output (docs/hht.md, "Dense output"): false (default): every AdvanceTo target
+  // is a step end (the step is shortened to land on it, as before). true: the steps do
+  // not depend on the targets; AdvanceTo steps until it reaches or passes the target and
+  // state() is interpolated there: q and v cubic Hermite from (q, v) and (v, a) at the
+  // step's two ends, a and lambda linear, each Euler-parameter group normalised (and its
+  // rate made orthogonal to it); quadrature() is the integral of the integrand's linear
+  // interpolant over the part of the step. Not with replay_steps, SaveSnapshot or
+  // RestoreSnapshot (the interpolated state is not a step's state).
+  bool dense_output = false;
+  // With dense_output, no step passes this time (the step reaching it is shortened to
+  // land on it, as an AdvanceTo target is without dense output) and AdvanceTo beyond it
+  // fails. Infinity: no limit (the last step may pass the last target). Unused without
+  // dense_output.
+  double stop_time = std::numeric_limits<double>::infinity();
 
   bool IsValid(std::string* error) const;
 };

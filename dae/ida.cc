@@ -46,6 +46,7 @@ bool IdaOptions::IsValid(std::string* error) const {
   if (!(roundoff_factor >= 0) || !std::isfinite(roundoff_factor))
     return fail("roundoff_factor must be >= 0 and finite (0: no rounding-level rules)");
   if (max_restarts < 0) return fail("max_restarts must be >= 0 (0: no restarts)");
+  if (std::isnan(stop_time)) return fail("stop_time must not be NaN");
   return true;
 }
 
@@ -333,6 +334,8 @@ class IdaIntegrator final : public Integrator {
     row_index_.assign(p.row_index.begin(), p.row_index.end());
     values_.assign(p.nnz(), 0.0);
     state_.Resize(ggl_.nq(), ggl_.nc());
+    dense_ = options_.dense_output;
+    if (dense_) out_.Resize(ggl_.nq(), ggl_.nc());
     rounding_ = std::make_unique<internal::GglRounding>(ggl_, options_.roundoff_factor);
   }
 
@@ -355,6 +358,9 @@ class IdaIntegrator final : public Integrator {
     id_.reset();
     atol_.reset();
     yq_.reset();
+    dense_yq_.reset();
+    dense_yp_.reset();
+    dense_y_.reset();
     yp_.reset();
     y_.reset();
     context_.reset();
@@ -378,6 +384,15 @@ class IdaIntegrator final : public Integrator {
     yp_.reset(N_VNew_Serial(n, ctx));
     id_.reset(N_VNew_Serial(n, ctx));
     if (!y_ || !yp_ || !id_) throw std::runtime_error("IDA: N_VNew_Serial failed");
+    if (dense_) {
+      dense_y_.reset(N_VNew_Serial(n, ctx));
+      dense_yp_.reset(N_VNew_Serial(n, ctx));
+      if (!dense_y_ || !dense_yp_) throw std::runtime_error("IDA: N_VNew_Serial failed");
+      if (quad_spec_.size > 0) {
+        dense_yq_.reset(N_VNew_Serial(quad_spec_.size, ctx));
+        if (!dense_yq_) throw std::runtime_error("IDA: N_VNew_Serial failed");
+      }
+    }
     double* y = N_VGetArrayPointer(y_.get());
     double* yp = N_VGetArrayPointer(yp_.get());
     double* id = N_VGetArrayPointer(id_.get());
@@ -445,6 +460,7 @@ class IdaIntegrator final : public Integrator {
     }
 
     state_ = x0;
+    if (dense_) out_ = x0;
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
     if (observer_) observer_(state_, 0.0);
@@ -457,23 +473,30 @@ class IdaIntegrator final : public Integrator {
       return false;
     }
     if (summary_.status == Summary::Status::kFailed) return false;
-    if (!(t_target > state_.t)) {
+    const double t_now = dense_ ? out_.t : state_.t;
+    if (!(t_target > t_now)) {
       summary_.status = Summary::Status::kFailed;
       summary_.message = "IDA: AdvanceTo(" + ToString(t_target) +
-                         ") must go beyond the current time " + ToString(state_.t);
+                         ") must go beyond the current time " + ToString(t_now);
       return false;
     }
+    if (dense_ && t_target > options_.stop_time)
+      return Fail("IDA: AdvanceTo(" + ToString(t_target) + ") is beyond the stop time " +
+                  ToString(options_.stop_time) + " (dense output)");
     void* mem = mem_.get();
     callback_error_.clear();
     ida_error_.clear();
     // Stop exactly at the target: the reported state is a solution of the DAE, not an
     // interpolant, and the integration never steps beyond a requested time. One step per
     // IDASolve call, so that the step budget, the smallest step and the observer see
-    // every step.
-    IDASetStopTime(mem, t_target);
+    // every step. With dense output the steps land on the stop time only, and the state
+    // at the target is interpolated (IDAGetDky).
+    const double t_land = dense_ ? options_.stop_time : t_target;
+    if (std::isfinite(t_land)) IDASetStopTime(mem, t_land);
     double t_ret = state_.t;
     int flag = IDA_SUCCESS;
-    for (long steps_this_call = 0;;) {
+    // Dense output: a target within the last step needs no step.
+    for (long steps_this_call = 0; !dense_ || state_.t < t_target;) {
       if (options_.max_steps > 0 && summary_.steps_accepted >= options_.max_steps)
         return Fail("IDA: the step budget of " + std::to_string(options_.max_steps) +
                     " steps is used up at t = " + ToString(state_.t) +
@@ -491,7 +514,7 @@ class IdaIntegrator final : public Integrator {
       tiny_steps_ = flag >= 0 && h < options_.min_relative_step * std::max(1.0, std::abs(t_ret))
                         ? tiny_steps_ + 1
                         : 0;
-      if ((flag < 0 || tiny_steps_ >= kTinyStepsToFail) && Restart(t_ret, t_target)) continue;
+      if ((flag < 0 || tiny_steps_ >= kTinyStepsToFail) && Restart(t_ret, t_land)) continue;
       if (flag < 0) break;
       Remember(t_ret);
       if (tiny_steps_ >= kTinyStepsToFail)
@@ -506,9 +529,11 @@ class IdaIntegrator final : public Integrator {
     }
     if (quad_spec_.size > 0 && flag >= 0) {
       double t_quad = t_ret;
-      const int qflag = IDAGetQuad(mem, &t_quad, yq_.get());
-      if (qflag != IDA_SUCCESS) return Fail(std::string("IDA: IDAGetQuad failed with ") + FlagName(qflag));
-      const double* yq = N_VGetArrayPointer(yq_.get());
+      const int qflag = dense_ ? IDAGetQuadDky(mem, t_target, 0, dense_yq_.get())
+                               : IDAGetQuad(mem, &t_quad, yq_.get());
+      if (qflag != IDA_SUCCESS)
+        return Fail(std::string("IDA: IDAGetQuad") + (dense_ ? "Dky" : "") + " failed with " + FlagName(qflag));
+      const double* yq = N_VGetArrayPointer(dense_ ? dense_yq_.get() : yq_.get());
       std::copy(yq, yq + quad_spec_.size, quad_.begin());
     }
     if (flag < 0) {
@@ -518,8 +543,29 @@ class IdaIntegrator final : public Integrator {
       if (!ida_error_.empty()) os << " (" << ida_error_ << ")";
       return Fail(os.str());
     }
+    if (dense_ && !Interpolate(t_target)) return false;
     summary_.status = Summary::Status::kRunning;
     summary_.message.clear();
+    return true;
+  }
+
+  // Dense output: out_ at t from IDA's interpolating polynomial of its last step.
+  bool Interpolate(double t) {
+    void* mem = mem_.get();
+    int flag = IDAGetDky(mem, t, 0, dense_y_.get());
+    if (flag == IDA_SUCCESS) flag = IDAGetDky(mem, t, 1, dense_yp_.get());
+    if (flag != IDA_SUCCESS)
+      return Fail("IDA: IDAGetDky at t = " + ToString(t) + " failed with " + FlagName(flag));
+    const int nq = ggl_.nq(), nc = ggl_.nc();
+    const double* y = N_VGetArrayPointer(dense_y_.get());
+    const double* yp = N_VGetArrayPointer(dense_yp_.get());
+    out_.t = t;
+    for (int i = 0; i < nq; ++i) {
+      out_.q[i] = y[i];
+      out_.v[i] = y[nq + i];
+      out_.a[i] = yp[nq + i];
+    }
+    for (int r = 0; r < nc; ++r) out_.lambda[r] = y[2 * nq + r];
     return true;
   }
 
@@ -559,7 +605,7 @@ class IdaIntegrator final : public Integrator {
     // IDA's counters start again from zero: keep what they counted so far.
     counted_ = summary_;
     if (IDAReInit(mem, s.t, y_.get(), yp_.get()) != IDA_SUCCESS) return false;
-    if (IDASetStopTime(mem, t_target) != IDA_SUCCESS) return false;
+    if (std::isfinite(t_target) && IDASetStopTime(mem, t_target) != IDA_SUCCESS) return false;
     // A first step that differs at every restart of a row (the mean step of the history
     // times 0.3, 0.5, 0.7), so that the new sequence of steps differs from the failed one.
     const double h0 = (t_fail - s.t) / static_cast<double>(history_count_) *
@@ -590,12 +636,12 @@ class IdaIntegrator final : public Integrator {
   }
   const std::vector<double>& quadrature() const override { return quad_; }
 
-  const State& state() const override { return state_; }
+  const State& state() const override { return dense_ ? out_ : state_; }
   const Summary& summary() const override { return summary_; }
   std::string name() const override {
     char buf[128];
-    std::snprintf(buf, sizeof buf, "IDA (BDF, stabilised index-2 form), rtol = %g, atol = %g",
-                  options_.rtol, options_.atol);
+    std::snprintf(buf, sizeof buf, "IDA (BDF, stabilised index-2 form), rtol = %g, atol = %g%s",
+                  options_.rtol, options_.atol, dense_ ? ", dense output" : "");
     return buf;
   }
 
@@ -621,6 +667,7 @@ class IdaIntegrator final : public Integrator {
   bool Fail(const std::string& why) {
     summary_.status = Summary::Status::kFailed;
     summary_.message = why;
+    if (dense_) out_ = state_;  // the last state reached is the last step's
     return false;
   }
 
@@ -843,6 +890,9 @@ class IdaIntegrator final : public Integrator {
   std::vector<sunindextype> col_start_, row_index_;
   std::vector<double> values_;
   State state_;
+  // Dense output (IdaOptions::dense_output): the reported (interpolated) state.
+  bool dense_ = false;
+  State out_;
   Summary summary_;
   Quadrature quad_spec_;
   std::vector<double> quad_;
@@ -868,6 +918,7 @@ class IdaIntegrator final : public Integrator {
   // Destroyed in reverse order: IDA memory first, the context last.
   ContextPtr context_;
   VectorPtr y_, yp_, id_, atol_, yq_;
+  VectorPtr dense_y_, dense_yp_, dense_yq_;  // IDAGetDky's outputs (dense output)
   MatrixPtr matrix_;
   LinearSolverPtr inner_solver_, solver_;
   VectorPtr work_b_, work_x_;

@@ -12,6 +12,7 @@
 // collapse (IdaOptions::max_steps, min_relative_step).
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -59,6 +60,14 @@ struct IdaOptions {
   // this many times in a row; the step observer then sees steps again from that earlier
   // time. Not with quadratures. 0: no restarts.
   int max_restarts = 3;
+  // Dense output (docs/dense-output.md): false (default): every AdvanceTo target
+  // is a stop time of IDA (IDASetStopTime: the steps land on it). true: IDA's steps do
+  // not depend on the targets; AdvanceTo steps until it reaches or passes the target and
+  // state() is IDA's interpolating polynomial there (IDAGetDky: q, v, lambda from y, a
+  // from y'; the quadrature from IDAGetQuadDky). The steps land on stop_time instead
+  // (infinity: no stop time; AdvanceTo beyond it fails).
+  bool dense_output = false;
+  double stop_time = std::numeric_limits<double>::infinity();
 
   bool IsValid(std::string* error) const;
 };

@@ -206,6 +206,12 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
   if (settings.integrator == mbs::IntegratorKind::kKinematic)
     throw InputError(Prefix(m) + "gradients are taken of hht or ida runs; the kinematic analysis has no "
                      "sensitivities (use --integrator hht or ida)");
+  if (settings.integrator == mbs::IntegratorKind::kHht && settings.hht_dense_output)
+    throw InputError(Prefix(m) + "gradients of hht runs follow steps that land on the output times; "
+                     "hht dense_output is not supported (set hht: {dense_output: false})");
+  if (settings.integrator == mbs::IntegratorKind::kIda && settings.ida_dense_output)
+    throw InputError(Prefix(m) + "gradients of ida runs follow steps that land on the output times; "
+                     "ida dense_output is not supported (set ida: {dense_output: false})");
   const bool hht = settings.integrator == mbs::IntegratorKind::kHht;
   const bool exact = request.method != GradientMethod::kFd;
   if (request.method == GradientMethod::kAdjoint && !hht) {

@@ -51,6 +51,7 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   o.adaptive = s.hht_adaptive;
   o.tolerance = s.hht_tolerance;
   o.modified = s.hht_modified;
+  o.dense_output = s.hht_dense_output;
   if (!dae::ParseHhtForm(s.hht_form, &o.form))
     throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
   if (!dae::ParseHhtStart(s.hht_start, &o.start))
@@ -74,6 +75,7 @@ dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& s) {
   o.atol = s.ida_atol;
   o.max_steps = s.ida_max_steps;
   o.min_step = s.ida_min_step;
+  o.dense_output = s.ida_dense_output;
   return o;
 }
 
@@ -147,6 +149,8 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_tolerance) s.hht_tolerance = *o.hht_tolerance;
   if (o.hht_adaptive) s.hht_adaptive = *o.hht_adaptive;
   if (o.hht_modified) s.hht_modified = *o.hht_modified;
+  if (o.hht_dense_output) s.hht_dense_output = *o.hht_dense_output;
+  if (o.ida_dense_output) s.ida_dense_output = *o.ida_dense_output;
   if (o.hht_form) s.hht_form = *o.hht_form;
   if (o.hht_start) s.hht_start = *o.hht_start;
   if (o.output_accelerations) s.output_accelerations = *o.output_accelerations;
@@ -468,11 +472,13 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_modified", settings.hht_modified ? 1 : 0);
     file.SetAttribute("hht_form", settings.hht_form);
     file.SetAttribute("hht_start", settings.hht_start);
+    file.SetAttribute("hht_dense_output", settings.hht_dense_output ? 1 : 0);
   } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
     file.SetAttribute("ida_max_steps", settings.ida_max_steps);
     file.SetAttribute("ida_min_step", settings.ida_min_step);
+    file.SetAttribute("ida_dense_output", settings.ida_dense_output ? 1 : 0);
   } else if (settings.integrator == mbs::IntegratorKind::kErk) {
     file.SetAttribute("erk_rtol", settings.erk_rtol);
     file.SetAttribute("erk_atol", settings.erk_atol);
@@ -519,9 +525,11 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
 
 std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
                                                 const mbs::SimulationSettings& settings,
-                                                const std::function<void(dae::HhtOptions&)>& adjust_hht) {
+                                                const std::function<void(dae::HhtOptions&)>& adjust_hht,
+                                                double dense_stop_time) {
   if (settings.integrator == mbs::IntegratorKind::kHht) {
     dae::HhtOptions o = HhtOptionsOf(settings);
+    o.stop_time = dense_stop_time;
     if (adjust_hht) adjust_hht(o);
     std::string error;
     if (!o.IsValid(&error)) throw InputError("hht settings: " + error);
@@ -537,7 +545,9 @@ std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
     if (!o.IsValid(&error)) throw InputError("erk settings: " + error);
     return dae::MakeErkIntegrator(system, o);
   }
-  return dae::MakeIdaIntegrator(system, IdaOptionsOf(settings));
+  dae::IdaOptions o = IdaOptionsOf(settings);
+  o.stop_time = dense_stop_time;
+  return dae::MakeIdaIntegrator(system, o);
 }
 
 std::vector<std::string> EffortJointNames(const mbs::Model& model) {
@@ -755,7 +765,10 @@ SimulationSummary Simulate(const mbs::Model& model, Assembly& asmb,
   summary.redundant_constraints = asmb.redundant_names();
   summary.results_path = options.results_path;
 
-  std::unique_ptr<dae::Integrator> integrator = MakeIntegrator(kept, settings, options.adjust_hht);
+  // Dense output: the last step lands on t_end (a C API host may step past it; the
+  // program's run ends there).
+  std::unique_ptr<dae::Integrator> integrator =
+      MakeIntegrator(kept, settings, options.adjust_hht, settings.t_end);
   summary.integrator_detail = integrator->name();
   // The model's objectives: integrands as the integrator's quadrature, terminal values
   // at the end (sensitivities/model_objectives.h).

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -46,13 +47,14 @@ struct SettingsOverrides {
   std::optional<double> t_end, output_step;
   std::optional<mbs::IntegratorKind> integrator;
   std::optional<double> hht_alpha, hht_step, hht_tolerance;
-  std::optional<bool> hht_adaptive, hht_modified;
+  std::optional<bool> hht_adaptive, hht_modified, hht_dense_output;
   std::optional<std::string> hht_form;
   std::optional<std::string> hht_start;             // "perturbed" | "consistent"
   std::optional<std::string> output_accelerations;  // "solved" | "integrator"
   std::optional<double> ida_rtol, ida_atol;
   std::optional<long> ida_max_steps;
   std::optional<double> ida_min_step;
+  std::optional<bool> ida_dense_output;
   std::optional<double> erk_rtol, erk_atol;
   std::optional<long> erk_max_steps;
   std::optional<double> erk_min_step, erk_max_step;
@@ -219,11 +221,14 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run);
 // counters, times, violations.
 void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summary);
 
-// The integrator of the settings (HHT, IDA or the kinematic analysis) on `system`, not
-// yet initialised. Throws InputError for settings that cannot be used (CheckIntegrator).
-std::unique_ptr<dae::Integrator> MakeIntegrator(dae::MechanicalSystem& system,
-                                                const mbs::SimulationSettings& settings,
-                                                const std::function<void(dae::HhtOptions&)>& adjust_hht = {});
+// The integrator of the settings (HHT, IDA, erk or the kinematic analysis) on `system`,
+// not yet initialised. Throws InputError for settings that cannot be used
+// (CheckIntegrator). dense_stop_time: the stop time of HHT's and IDA's dense output
+// (hht.dense_output, ida.dense_output; infinity: none, for a host that steps past t_end).
+std::unique_ptr<dae::Integrator> MakeIntegrator(
+    dae::MechanicalSystem& system, const mbs::SimulationSettings& settings,
+    const std::function<void(dae::HhtOptions&)>& adjust_hht = {},
+    double dense_stop_time = std::numeric_limits<double>::infinity());
 
 // The quantities of one output row beyond the state: body data, measures (angles
 // unwrapped across the rows: the turn is chosen nearest to the angle predicted from the

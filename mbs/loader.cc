@@ -1608,7 +1608,8 @@ class Loader {
                                                  {{"solved", "solved"}, {"integrator", "integrator"}});
     }
     if (const YAML::Node h = node["hht"]) {
-      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start"}, "hht");
+      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output"},
+                "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
         if (!(s.hht_alpha >= -1.0 / 3.0 - 1e-15 && s.hht_alpha <= 0)) {
@@ -1619,6 +1620,7 @@ class Loader {
       if (const YAML::Node n = h["adaptive"]) s.hht_adaptive = Bool(n, element, "adaptive");
       if (const YAML::Node n = h["tolerance"]) s.hht_tolerance = positive(n, "hht tolerance");
       if (const YAML::Node n = h["modified"]) s.hht_modified = Bool(n, element, "modified");
+      if (const YAML::Node n = h["dense_output"]) s.hht_dense_output = Bool(n, element, "dense_output");
       if (const YAML::Node n = h["form"]) {
         s.hht_form = Enum<std::string>(n, element, "form",
                                        {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});
@@ -1629,7 +1631,8 @@ class Loader {
       }
     }
     if (const YAML::Node i = node["ida"]) {
-      CheckKeys(i, element, {"rtol", "atol", "max_steps", "min_step"}, "ida");
+      CheckKeys(i, element, {"rtol", "atol", "max_steps", "min_step", "dense_output"}, "ida");
+      if (const YAML::Node n = i["dense_output"]) s.ida_dense_output = Bool(n, element, "dense_output");
       if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
       if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
       if (const YAML::Node n = i["max_steps"]) {

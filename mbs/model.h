@@ -264,6 +264,9 @@ struct SimulationSettings {
   // gradient runs differentiate) or "perturbed" (the smooth solution's abar_0 and v_0: no
   // start-up oscillation of the multipliers); dae/hht.h HhtOptions::Start.
   std::string hht_start = "consistent";
+  // Dense output (dae/hht.h HhtOptions::dense_output): the steps do not land on the output
+  // times, the rows are interpolated (docs/hht.md, "Dense output"). Not with gradients.
+  bool hht_dense_output = false;
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its
@@ -271,6 +274,9 @@ struct SimulationSettings {
   // min_step}` take a positive integer and a positive number.
   long ida_max_steps = 100000000;
   double ida_min_step = 0;
+  // IDA's dense output (dae/ida.h IdaOptions::dense_output): the file's `ida:
+  // {dense_output}`; not with gradients.
+  bool ida_dense_output = false;
   // The explicit Runge-Kutta integrator (dae/erk.h ErkOptions): its local error
   // tolerances, step budget (total steps), smallest step (0: 1e-14 max(1, |t|)) and
   // largest step (0: no limit); the file's `erk: {rtol, atol, max_steps, min_step,

@@ -334,10 +334,11 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
     << ", modified: " << (sim.hht_modified ? "true" : "false") << ", form: " << sim.hht_form
-    << ", start: " << sim.hht_start << "}\n";
+    << ", start: " << sim.hht_start << (sim.hht_dense_output ? ", dense_output: true" : "") << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol);
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;
   if (sim.ida_min_step > 0) s << ", min_step: " << Num(sim.ida_min_step);
+  if (sim.ida_dense_output) s << ", dense_output: true";
   s << "}\n";
   // The erk block only when it is used or set (files written before it existed stay as
   // they were).

@@ -296,6 +296,18 @@ TEST(ApiErrors, BadOptionValuesAreInputErrorsAndChangeNothing) {
   ASSERT_MBDAE_OK(mbdae_set_option(m, "hht.form", "negrut"));
   ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.form", buf, sizeof buf));
   EXPECT_STREQ(buf, "negrut");
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.dense_output", buf, sizeof buf));
+  EXPECT_STREQ(buf, "false");
+  EXPECT_EQ(mbdae_set_option(m, "hht.dense_output", "1"), MBDAE_ERROR_INPUT);
+  EXPECT_STREQ(mbdae_last_error(), "option hht.dense_output: expected true or false, got '1'");
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "hht.dense_output", "true"));
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.dense_output", buf, sizeof buf));
+  EXPECT_STREQ(buf, "true");
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "ida.dense_output", buf, sizeof buf));
+  EXPECT_STREQ(buf, "false");
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "ida.dense_output", "true"));
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "ida.dense_output", buf, sizeof buf));
+  EXPECT_STREQ(buf, "true");
   ASSERT_MBDAE_OK(mbdae_set_option(m, "ida.rtol", "1e-6"));
   ASSERT_MBDAE_OK(mbdae_get_option(m, "ida.rtol", buf, sizeof buf));
   EXPECT_EQ(std::atof(buf), 1e-6);

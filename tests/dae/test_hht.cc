@@ -4,9 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <random>
+#include <stdexcept>
 
 #include "dae/hht.h"
 #include "tests/support/free_body_system.h"
@@ -628,6 +632,177 @@ TEST(HhtNegrutForm, TumblingBodyIsFirstOrderForNegativeAlpha) {
       }
     }
   }
+}
+
+// ---------------------------------------------------------------------------------
+// Dense output (HhtOptions::dense_output, docs/hht.md "Dense output").
+
+// An adaptive pendulum run with dense output: targets every `every` s up to 1 s; the
+// state at each target and the run's counters.
+struct DenseRun {
+  std::vector<State> rows;
+  Summary summary;
+};
+
+DenseRun DensePendulum(double every, bool adaptive, double step, double stop_time,
+                       bool dense = true) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.alpha = -0.1;
+  opt.adaptive = adaptive;
+  opt.tolerance = 1e-6;
+  opt.step = step;
+  opt.newton_tolerance = 1e-13;
+  opt.dense_output = dense;
+  opt.stop_time = stop_time;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  DenseRun r;
+  const int n = static_cast<int>(std::lround(1.0 / every));
+  for (int k = 1; k <= n; ++k) {
+    const double t = static_cast<double>(k) / n;
+    EXPECT_TRUE(integ->AdvanceTo(t)) << integ->summary().BriefReport();
+    EXPECT_EQ(integ->state().t, t);
+    r.rows.push_back(integ->state());
+  }
+  r.summary = integ->summary();
+  return r;
+}
+
+// The steps do not depend on the output times: rows every 0.01 s and every 0.1 s take
+// the same steps, and their states at the common times are the same numbers.
+TEST(HhtDenseOutput, StepsDoNotDependOnTheOutputTimes) {
+  const DenseRun fine = DensePendulum(0.01, true, 1e-4, 1.0);
+  const DenseRun coarse = DensePendulum(0.1, true, 1e-4, 1.0);
+  EXPECT_EQ(fine.summary.steps_accepted, coarse.summary.steps_accepted);
+  EXPECT_EQ(fine.summary.steps_rejected, coarse.summary.steps_rejected);
+  for (int k = 1; k <= 10; ++k) {
+    const State& a = fine.rows[10 * k - 1];
+    const State& b = coarse.rows[k - 1];
+    EXPECT_EQ(a.t, b.t);
+    EXPECT_EQ(a.q, b.q) << "t = " << a.t;
+    EXPECT_EQ(a.v, b.v) << "t = " << a.t;
+    EXPECT_EQ(a.lambda, b.lambda) << "t = " << a.t;
+  }
+  // Without dense output the output step caps the step: more steps with rows every 0.01 s.
+  const DenseRun hit = DensePendulum(0.01, true, 1e-4, 1.0, false);
+  EXPECT_GT(hit.summary.steps_accepted, fine.summary.steps_accepted);
+  std::printf("adaptive, tol 1e-6: %ld steps dense (both output steps), %ld landing on rows every 0.01 s\n",
+              fine.summary.steps_accepted, hit.summary.steps_accepted);
+}
+
+// Fixed step h with rows every 1/27 s (mostly not step ends): the interpolated rows converge at second order, as the steps do, against the
+// RK4 reference at each row time.
+TEST(HhtDenseOutput, InterpolatedRowsAreSecondOrder) {
+  const int n_rows = 27;
+  std::vector<std::array<double, 2>> ref;
+  for (int k = 1; k <= n_rows; ++k) ref.push_back(PendulumReference(1.0, 9.81, M_PI / 2, k / 27.0));
+  double prev = 0;
+  for (int j = 0; j < 4; ++j) {
+    const double h = 0.01 / (1 << j);
+    const DenseRun r = DensePendulum(1.0 / n_rows, false, h, 1.0);
+    ASSERT_EQ(static_cast<int>(r.rows.size()), n_rows);
+    double err = 0;
+    for (int k = 0; k < n_rows; ++k)
+      err = std::max(err, std::hypot(r.rows[k].q[0] - ref[k][0], r.rows[k].q[1] - ref[k][1]));
+    // The constant step is kept: 1 / h steps (the last lands on the stop time).
+    EXPECT_NEAR(static_cast<double>(r.summary.steps_accepted), 1.0 / h, 1.0) << "h = " << h;
+    std::printf("h = %g: largest error of the 27 rows %.3e\n", h, err);
+    if (j > 0) EXPECT_NEAR(prev / err, 4.0, 0.6) << "h = " << h << ", errors " << prev << " -> " << err;
+    prev = err;
+  }
+}
+
+// The rows of the step ends are the steps' states; the last step lands on the stop time,
+// and no step passes it; a target beyond it fails with a message.
+TEST(HhtDenseOutput, StopTimeIsLandedOnAndNotPassed) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.alpha = -0.1;
+  opt.step = 0.08;
+  opt.dense_output = true;
+  opt.stop_time = 1.0;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  double t_max = 0;
+  integ->SetStepObserver([&t_max](const State& x, double) { t_max = std::max(t_max, x.t); });
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  ASSERT_TRUE(integ->AdvanceTo(0.1));
+  EXPECT_NEAR(t_max, 0.16, 1e-15);  // two steps of 0.08: the row is interpolated in the second
+  ASSERT_TRUE(integ->AdvanceTo(1.0));
+  EXPECT_EQ(t_max, 1.0);
+  EXPECT_EQ(integ->state().t, 1.0);
+  EXPECT_EQ(integ->summary().t_reached, 1.0);
+  EXPECT_FALSE(integ->AdvanceTo(1.5));
+  EXPECT_NE(integ->summary().message.find("beyond the stop time"), std::string::npos)
+      << integ->summary().message;
+}
+
+// Euler parameters of interpolated rows are unit and their rates orthogonal to them.
+TEST(HhtDenseOutput, InterpolatedEulerParametersAreUnit) {
+  FreeBodySystem sys(1.5, {1.0, 1.5, 2.0}, {0.1, 0, 0}, {0.3, 0.2, 0.5});
+  HhtOptions opt;
+  opt.step = 0.05;
+  opt.alpha = -0.2;
+  opt.dense_output = true;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  std::vector<double> v(7, 0.0);
+  const double w[3] = {1.0, 0.5, -0.7};
+  const std::vector<double> q = {0, 0, 0, 1, 0, 0, 0};
+  FreeBodySystem::Gt(&q[3], w, &v[3]);
+  for (int k = 3; k < 7; ++k) v[k] *= 0.5;
+  integ->Initialize(ConsistentState(sys, q, v));
+  for (int k = 1; k <= 40; ++k) {
+    ASSERT_TRUE(integ->AdvanceTo(k * 0.0123)) << integ->summary().BriefReport();
+    const State& x = integ->state();
+    double n = 0, dot = 0;
+    for (int i = 3; i < 7; ++i) {
+      n += x.q[i] * x.q[i];
+      dot += x.q[i] * x.v[i];
+    }
+    EXPECT_NEAR(n, 1.0, 1e-14) << "t = " << x.t;
+    EXPECT_NEAR(dot, 0.0, 1e-14) << "t = " << x.t;
+  }
+}
+
+// The quadrature of an interpolated row is the integral of the integrand's linear
+// interpolant: exact for an integrand linear in t (g = t, g = 1) at any row time.
+TEST(HhtDenseOutput, QuadratureAtInterpolatedRows) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.alpha = -0.1;
+  opt.adaptive = true;
+  opt.tolerance = 1e-5;
+  opt.dense_output = true;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  Quadrature quad;
+  quad.size = 2;
+  quad.integrand = [](double t, const double*, const double*, const double*, const double*, double* g) {
+    g[0] = t;
+    g[1] = 1;
+    return 0;
+  };
+  integ->SetQuadrature(quad);
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  for (int k = 1; k <= 30; ++k) {
+    const double t = k * 0.0333;
+    ASSERT_TRUE(integ->AdvanceTo(t));
+    EXPECT_NEAR(integ->quadrature()[0], 0.5 * t * t, 1e-14) << "t = " << t;
+    EXPECT_NEAR(integ->quadrature()[1], t, 1e-14) << "t = " << t;
+  }
+}
+
+TEST(HhtDenseOutput, SnapshotsAndReplayAreRefused) {
+  PendulumSystem sys(1.0, 1.0, 9.81);
+  HhtOptions opt;
+  opt.dense_output = true;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  IntegratorSnapshot snap;
+  EXPECT_THROW(integ->SaveSnapshot(&snap), std::logic_error);
+  EXPECT_THROW(integ->RestoreSnapshot(snap), std::logic_error);
+  opt.replay_steps = {0.1, 0.1};
+  std::string err;
+  EXPECT_FALSE(opt.IsValid(&err));
+  EXPECT_NE(err.find("dense_output and replay_steps"), std::string::npos) << err;
 }
 
 }  // namespace

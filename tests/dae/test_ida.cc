@@ -361,6 +361,86 @@ TEST(IdaIntegrator, QuadratureMatchesClosedForms) {
   std::printf("quadrature: max relative error against the closed forms %.2e\n", max_err);
 }
 
+// Dense output (IdaOptions::dense_output): the steps do not depend on the targets (rows
+// every 0.01 s and every 0.1 s: the same steps, the same rows at the common times to the
+// interpolation's rounding), the rows keep the pendulum's invariants to the tolerance,
+// the quadrature of the rows matches its closed form, the last step lands on the stop
+// time, and a target beyond it fails.
+TEST(IdaIntegrator, DenseOutputStepsDoNotDependOnTheTargets) {
+  const double m = 1.3, L = 0.8, g = 9.81;
+  PendulumSystem sys(m, L, g);
+  const State x0 = ConsistentState(sys, {0.6, -std::sqrt(L * L - 0.36)}, {1.0, 0.75});
+  const double E0 = 0.5 * m * (x0.v[0] * x0.v[0] + x0.v[1] * x0.v[1]) + m * g * x0.q[1];
+  std::vector<State> rows[2];
+  long steps[2];
+  for (int run = 0; run < 2; ++run) {
+    IdaOptions options;
+    options.rtol = 1e-8;
+    options.atol = 1e-10;
+    options.dense_output = true;
+    options.stop_time = 1.0;
+    auto ida = MakeIdaIntegrator(sys, options);
+    Quadrature quad;
+    quad.size = 2;
+    quad.integrand = [&](double t, const double* q, const double* v, const double*, const double*,
+                         double* out) {
+      out[0] = 0.5 * m * (v[0] * v[0] + v[1] * v[1]) + m * g * q[1];
+      out[1] = t;
+      return 0;
+    };
+    ida->SetQuadrature(quad);
+    ida->Initialize(x0);
+    const int n = run == 0 ? 100 : 10;
+    for (int k = 1; k <= n; ++k) {
+      const double t = static_cast<double>(k) / n;
+      ASSERT_TRUE(ida->AdvanceTo(t)) << ida->summary().message;
+      const State& x = ida->state();
+      EXPECT_EQ(x.t, t);
+      // Invariants of the interpolated rows, to the tolerance (measured below 1e-9).
+      EXPECT_NEAR(x.q[0] * x.q[0] + x.q[1] * x.q[1], L * L, 1e-7) << "t = " << t;
+      const double E = 0.5 * m * (x.v[0] * x.v[0] + x.v[1] * x.v[1]) + m * g * x.q[1];
+      EXPECT_NEAR(E, E0, 1e-6) << "t = " << t;
+      EXPECT_NEAR(ida->quadrature()[0], E0 * t, 1e-6) << "t = " << t;
+      EXPECT_NEAR(ida->quadrature()[1], 0.5 * t * t, 1e-9) << "t = " << t;
+      rows[run].push_back(x);
+    }
+    steps[run] = ida->summary().steps_accepted;
+    EXPECT_EQ(ida->summary().t_reached, 1.0);  // the last step landed on the stop time
+    EXPECT_FALSE(ida->AdvanceTo(1.5));
+    EXPECT_NE(ida->summary().message.find("beyond the stop time"), std::string::npos)
+        << ida->summary().message;
+  }
+  EXPECT_EQ(steps[0], steps[1]);
+  for (int k = 0; k < 10; ++k) {
+    const State& a = rows[0][10 * k + 9];
+    const State& b = rows[1][k];
+    for (int i = 0; i < 2; ++i) {
+      EXPECT_NEAR(a.q[i], b.q[i], 1e-14) << "t = " << b.t;
+      EXPECT_NEAR(a.v[i], b.v[i], 1e-13) << "t = " << b.t;
+    }
+  }
+  // Without dense output (the same quadrature, which is in the error test) the steps
+  // land on the 100 targets: more steps.
+  IdaOptions options;
+  options.rtol = 1e-8;
+  options.atol = 1e-10;
+  auto ida = MakeIdaIntegrator(sys, options);
+  Quadrature quad;
+  quad.size = 2;
+  quad.integrand = [&](double t, const double* q, const double* v, const double*, const double*,
+                       double* out) {
+    out[0] = 0.5 * m * (v[0] * v[0] + v[1] * v[1]) + m * g * q[1];
+    out[1] = t;
+    return 0;
+  };
+  ida->SetQuadrature(quad);
+  ida->Initialize(x0);
+  for (int k = 1; k <= 100; ++k) ASSERT_TRUE(ida->AdvanceTo(k / 100.0));
+  std::printf("dense output: %ld steps for 100 or 10 rows; landing on 100 rows: %ld steps\n", steps[0],
+              ida->summary().steps_accepted);
+  EXPECT_GT(ida->summary().steps_accepted, steps[0]);
+}
+
 TEST(IdaIntegrator, QuadratureFailureIsReported) {
   PendulumSystem sys(1, 1, 9.81);
   auto ida = MakeIdaIntegrator(sys, IdaOptions{});

@@ -34,11 +34,18 @@ HHT_TOLS = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
 # step at tolerances 1e-4 and 1e-5 (README, "Adaptive HHT and the output step").
 HHT_COARSE_TOLS = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
 COARSE_OUTPUT_STEP = 0.1
+# Adaptive HHT with dense output (rows every 0.01 s interpolated; the steps do not land on
+# them): README, "Dense output".
+HHT_DENSE_TOLS = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
+# IDA with dense output likewise (rows interpolated by IDAGetDky; the steps land only on
+# t_end).
+IDA_DENSE_TOLS = IDA_TOLS
 HHT_STEPS = [1e-3, 1e-4]
 # The error at 10 s each setting must stay below (rad): a bound of the measured error
 # with a margin for the chaotic dependence of a run's steps on rounding (README).
 ERROR_BOUND = {("ida", 1e-8): 1e-3, ("ida", 1e-10): 1e-5, ("hht-adaptive", 1e-6): 5e-2,
-               ("hht-adaptive", 1e-9): 1e-3}
+               ("hht-adaptive", 1e-9): 1e-3, ("hht-adaptive-dense", 1e-6): 5e-2,
+               ("hht-adaptive-dense", 1e-9): 1e-3, ("ida-dense", 1e-8): 1e-3, ("ida-dense", 1e-10): 1e-5}
 # Branch kept: coupler rotation and crank-angle difference at most max(1e-6, tolerance)
 # rad (the antiparallelogram branch turns the coupler by order 1 rad).
 BRANCH_FLOOR = 1e-6
@@ -61,12 +68,18 @@ def args_for(integ, val):
                 "--tolerance", repr(val)]
     if integ == "hht-adaptive-rows-0.1":
         return args_for("hht-adaptive", val) + ["--output-step", repr(COARSE_OUTPUT_STEP)]
+    if integ == "hht-adaptive-dense":
+        return args_for("hht-adaptive", val) + ["--dense-output"]
+    if integ == "ida-dense":
+        return args_for("ida", val) + ["--dense-output"]
     return ["--integrator", "hht", "--fixed-step", "--alpha", "-0.1", "--step", repr(val)]
 
 
 def fmt_setting(integ, val):
     return {"ida": "rtol = atol = %g", "hht-adaptive": "tol = %g", "hht-fixed": "h = %g",
-            "hht-adaptive-rows-0.1": "tol = %g, rows every 0.1 s"}[integ] % val
+            "hht-adaptive-rows-0.1": "tol = %g, rows every 0.1 s",
+            "hht-adaptive-dense": "tol = %g, dense output",
+            "ida-dense": "rtol = atol = %g, dense output"}[integ] % val
 
 
 def run_case(runner, integ, val):
@@ -126,11 +139,13 @@ def main():
     n_pass = len(ts)
 
     if args.quick:
-        cases = [("ida", 1e-8), ("hht-adaptive", 1e-6)]
+        cases = [("ida", 1e-8), ("hht-adaptive", 1e-6), ("hht-adaptive-dense", 1e-6), ("ida-dense", 1e-8)]
     else:
         cases = ([("ida", v) for v in IDA_TOLS] + [("hht-adaptive", v) for v in HHT_TOLS]
                  + [("hht-fixed", v) for v in HHT_STEPS]
-                 + [("hht-adaptive-rows-0.1", v) for v in HHT_COARSE_TOLS])
+                 + [("hht-adaptive-rows-0.1", v) for v in HHT_COARSE_TOLS]
+                 + [("hht-adaptive-dense", v) for v in HHT_DENSE_TOLS]
+                 + [("ida-dense", v) for v in IDA_DENSE_TOLS])
     runs = []
     for integ, val in cases:
         c = run_case(runner, integ, val)
@@ -182,6 +197,13 @@ def main():
         for a, b in zip(HHT_COARSE_TOLS, HHT_COARSE_TOLS[1:]):
             checks.append(("hht-adaptive, rows every 0.1 s: largest error at tolerance %g (%.2e) "
                            "below that at %g (%.2e)" % (b, err[b], a, err[a]), err[b] < err[a]))
+        # Dense output: the steps do not depend on the rows (every 0.01 s); the error falls
+        # at every decade of the tolerance.
+        for integ, tols in (("hht-adaptive-dense", HHT_DENSE_TOLS), ("ida-dense", IDA_DENSE_TOLS)):
+            err = {c["value"]: c["error_max"] for c in runs if c["integrator"] == integ}
+            for a, b in zip(tols, tols[1:]):
+                checks.append(("%s: largest error at tolerance %g (%.2e) below that at %g (%.2e)"
+                               % (integ, b, err[b], a, err[a]), err[b] < err[a]))
         # With rows every 0.01 s, tolerance 1e-4 takes one step per output interval: the
         # step is the output step, and the run is the fixed-step run h = 0.01 (README).
         pinned = [c for c in runs if c["integrator"] == "hht-adaptive" and c["value"] == 1e-4]
@@ -234,7 +256,9 @@ def plot(runs):
     styles = {"ida": ("^-", "IDA, rtol = atol = 1e-4 ... 1e-10"),
               "hht-adaptive": ("s-", "HHT adaptive, tol = 1e-4 ... 1e-9"),
               "hht-fixed": ("o-", "HHT fixed step, h = 1e-3, 1e-4"),
-              "hht-adaptive-rows-0.1": ("s--", "HHT adaptive, tol = 1e-4 ... 1e-9, rows every 0.1 s")}
+              "hht-adaptive-rows-0.1": ("s--", "HHT adaptive, tol = 1e-4 ... 1e-9, rows every 0.1 s"),
+              "hht-adaptive-dense": ("d-", "HHT adaptive, tol = 1e-4 ... 1e-9, dense output"),
+              "ida-dense": ("v-", "IDA, rtol = atol = 1e-4 ... 1e-10, dense output")}
     for integ, (mark, label) in styles.items():
         pts = [(c["cpu"], c["error_max"]) for c in runs if c["integrator"] == integ and c["status"] == "done"]
         if pts:
