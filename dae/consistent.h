@@ -93,7 +93,7 @@ class AccelerationSolver {
   bool used_tree() const;
   // Empty when the tree elimination is available; else why not (or "not requested").
   const std::string& tree_refusal() const;
-  // Solves that fell back from the tree elimination to KLU at a near-singular state.
+  // Solves that fell back from the tree elimination to KLU (cases (b) and (c) above).
   long klu_fallbacks() const;
 
  private:

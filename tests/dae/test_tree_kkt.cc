@@ -257,8 +257,8 @@ class MasslessLeaf final : public MechanicalSystem {
   }
   int Evaluate(const EvalInput& in, EvalOutput& out) override {
     const double m = in.t > 0.4 && in.t < 0.6 ? 0.0 : 2.0;
-    if (out.force) out.force[0] = -9.81, out.force[1] = 0.5, out.force[2] = -0.25;
-    if (out.acc_rhs) out.acc_rhs[0] = 0.3, out.acc_rhs[1] = 0.1 * std::sin(in.t), out.acc_rhs[2] = -0.2;
+    if (double* f = out.force) f[0] = -9.81, f[1] = 0.5, f[2] = -0.25;
+    if (double* g = out.acc_rhs) g[0] = 0.3, g[1] = 0.1 * std::sin(in.t), g[2] = -0.2;
     // Column order: M (0,0); (1,1) (2,1); (1,2) (2,2). C_q: (0,0) (1,0) (2,0); (1,1); (2,2).
     if (double* M = out[Matrix::kMass]) M[0] = 1, M[1] = m, M[2] = 0, M[3] = 0, M[4] = m;
     if (double* C = out[Matrix::kConstraintDq]) C[0] = 1, C[1] = -1, C[2] = -1, C[3] = 1, C[4] = 1;
