@@ -24,7 +24,6 @@
 #include <map>
 #include <memory>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -35,6 +34,7 @@
 #include "dae/tree_kkt.h"
 #include "mbs/loader.h"
 #include "mbs/system.h"
+#include "tests/support/ball_chain.h"
 
 namespace {
 
@@ -42,24 +42,7 @@ namespace dae = mbdae::dae;
 namespace mbs = mbdae::mbs;
 using dae::Matrix;
 
-std::string ChainYaml(int n) {
-  std::ostringstream s;
-  s.precision(17);
-  const double m = 1.0, len = 0.1, w = 0.01;
-  const double ixx = m * (2 * w * w) / 12, iyy = m * (len * len + w * w) / 12;
-  s << "format: 1\nname: chain\ngravity: [0, -9.81, 0]\nbodies:\n";
-  for (int k = 1; k <= n; ++k)
-    s << "  - {name: rod" << k << ", mass: " << m << ", inertia: [" << ixx << ", " << iyy
-      << ", " << iyy << "], position: [" << (k - 0.5) * len
-      << ", 0, 0], orientation: [1, 0, 0, 0], markers: {A: {position: [" << -len / 2
-      << ", 0, 0]}, B: {position: [" << len / 2 << ", 0, 0]}}}\n";
-  s << "joints:\n  - {name: ball1, type: spherical, i: rod1.A, j: ground.O}\n";
-  for (int k = 2; k <= n; ++k)
-    s << "  - {name: ball" << k << ", type: spherical, i: rod" << k << ".A, j: rod" << k - 1
-      << ".B}\n";
-  s << "simulation: {t_end: 1, output_step: 1}\n";
-  return s.str();
-}
+std::string ChainYaml(int n) { return mbdae::testing::BallChainYaml(n, 1); }
 
 struct Chain {
   mbs::Model model;

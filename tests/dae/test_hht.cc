@@ -557,6 +557,17 @@ namespace {
 
 // General tumbling motion (reference: the same scheme at a 16 times smaller step than
 // the finest one compared). Returns q and v at t = 1.
+// At the origin, unrotated, tumbling with body angular velocity (1, 0.5, -0.7) rad/s
+// (e' = G^T omega / 2), made consistent.
+State TumblingStart(FreeBodySystem& sys) {
+  std::vector<double> v(7, 0.0);
+  const double w[3] = {1.0, 0.5, -0.7};
+  const std::vector<double> q = {0, 0, 0, 1, 0, 0, 0};
+  FreeBodySystem::Gt(&q[3], w, &v[3]);
+  for (int k = 3; k < 7; ++k) v[k] *= 0.5;
+  return ConsistentState(sys, q, v);
+}
+
 std::pair<std::vector<double>, std::vector<double>> Tumble(double h, bool modified, double alpha,
                                                            HhtOptions::Form form) {
   FreeBodySystem sys(1.5, {1.0, 1.5, 2.0}, {0, 0, 0}, {0.3, -0.2, 0.5});
@@ -567,12 +578,7 @@ std::pair<std::vector<double>, std::vector<double>> Tumble(double h, bool modifi
   opt.form = form;
   opt.newton_tolerance = 1e-11;
   auto integ = MakeHhtIntegrator(sys, opt);
-  std::vector<double> v(7, 0.0);
-  const double w[3] = {1.0, 0.5, -0.7};
-  const std::vector<double> q = {0, 0, 0, 1, 0, 0, 0};
-  FreeBodySystem::Gt(&q[3], w, &v[3]);
-  for (int k = 3; k < 7; ++k) v[k] *= 0.5;
-  integ->Initialize(ConsistentState(sys, q, v));
+  integ->Initialize(TumblingStart(sys));
   EXPECT_TRUE(integ->AdvanceTo(1.0)) << integ->summary().BriefReport();
   return {integ->state().q, integ->state().v};
 }
@@ -745,12 +751,7 @@ TEST(HhtDenseOutput, InterpolatedEulerParametersAreUnit) {
   opt.alpha = -0.2;
   opt.dense_output = true;
   auto integ = MakeHhtIntegrator(sys, opt);
-  std::vector<double> v(7, 0.0);
-  const double w[3] = {1.0, 0.5, -0.7};
-  const std::vector<double> q = {0, 0, 0, 1, 0, 0, 0};
-  FreeBodySystem::Gt(&q[3], w, &v[3]);
-  for (int k = 3; k < 7; ++k) v[k] *= 0.5;
-  integ->Initialize(ConsistentState(sys, q, v));
+  integ->Initialize(TumblingStart(sys));
   for (int k = 1; k <= 40; ++k) {
     ASSERT_TRUE(integ->AdvanceTo(k * 0.0123)) << integ->summary().BriefReport();
     const State& x = integ->state();

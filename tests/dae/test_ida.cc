@@ -371,6 +371,15 @@ TEST(IdaIntegrator, DenseOutputStepsDoNotDependOnTheTargets) {
   PendulumSystem sys(m, L, g);
   const State x0 = ConsistentState(sys, {0.6, -std::sqrt(L * L - 0.36)}, {1.0, 0.75});
   const double E0 = 0.5 * m * (x0.v[0] * x0.v[0] + x0.v[1] * x0.v[1]) + m * g * x0.q[1];
+  // The energy (constant) and t.
+  Quadrature quad;
+  quad.size = 2;
+  quad.integrand = [&](double t, const double* q, const double* v, const double*, const double*,
+                       double* out) {
+    out[0] = 0.5 * m * (v[0] * v[0] + v[1] * v[1]) + m * g * q[1];
+    out[1] = t;
+    return 0;
+  };
   std::vector<State> rows[2];
   long steps[2];
   for (int run = 0; run < 2; ++run) {
@@ -380,14 +389,6 @@ TEST(IdaIntegrator, DenseOutputStepsDoNotDependOnTheTargets) {
     options.dense_output = true;
     options.stop_time = 1.0;
     auto ida = MakeIdaIntegrator(sys, options);
-    Quadrature quad;
-    quad.size = 2;
-    quad.integrand = [&](double t, const double* q, const double* v, const double*, const double*,
-                         double* out) {
-      out[0] = 0.5 * m * (v[0] * v[0] + v[1] * v[1]) + m * g * q[1];
-      out[1] = t;
-      return 0;
-    };
     ida->SetQuadrature(quad);
     ida->Initialize(x0);
     const int n = run == 0 ? 100 : 10;
@@ -425,14 +426,6 @@ TEST(IdaIntegrator, DenseOutputStepsDoNotDependOnTheTargets) {
   options.rtol = 1e-8;
   options.atol = 1e-10;
   auto ida = MakeIdaIntegrator(sys, options);
-  Quadrature quad;
-  quad.size = 2;
-  quad.integrand = [&](double t, const double* q, const double* v, const double*, const double*,
-                       double* out) {
-    out[0] = 0.5 * m * (v[0] * v[0] + v[1] * v[1]) + m * g * q[1];
-    out[1] = t;
-    return 0;
-  };
   ida->SetQuadrature(quad);
   ida->Initialize(x0);
   for (int k = 1; k <= 100; ++k) ASSERT_TRUE(ida->AdvanceTo(k / 100.0));

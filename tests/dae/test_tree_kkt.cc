@@ -11,13 +11,13 @@
 #include <cstdio>
 #include <dirent.h>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "dae/consistent.h"
 #include "mbs/loader.h"
 #include "mbs/system.h"
+#include "tests/support/ball_chain.h"
 #include "tests/support/free_body_system.h"
 #include "tests/support/integrator_cases.h"
 #include "tests/support/nonlinear_system.h"
@@ -97,26 +97,7 @@ TEST(TreeKkt, MatchesKluOnTheTestSystems) {
   }
 }
 
-// The ball chain of the peers benchmark (bench/scenes/ball_chain.py): rods of 0.1 m,
-// 1 kg, box inertia 0.1 x 0.01 x 0.01 m, spherical joints, the first to the ground.
-std::string ChainYaml(int n) {
-  std::ostringstream s;
-  s.precision(17);
-  const double m = 1.0, len = 0.1, w = 0.01;
-  const double ixx = m * (2 * w * w) / 12, iyy = m * (len * len + w * w) / 12;
-  s << "format: 1\nname: chain\ngravity: [0, -9.81, 0]\nbodies:\n";
-  for (int k = 1; k <= n; ++k)
-    s << "  - {name: rod" << k << ", mass: " << m << ", inertia: [" << ixx << ", " << iyy
-      << ", " << iyy << "], position: [" << (k - 0.5) * len
-      << ", 0, 0], orientation: [1, 0, 0, 0], markers: {A: {position: [" << -len / 2
-      << ", 0, 0]}, B: {position: [" << len / 2 << ", 0, 0]}}}\n";
-  s << "joints:\n  - {name: ball1, type: spherical, i: rod1.A, j: ground.O}\n";
-  for (int k = 2; k <= n; ++k)
-    s << "  - {name: ball" << k << ", type: spherical, i: rod" << k << ".A, j: rod" << k - 1
-      << ".B}\n";
-  s << "simulation: {t_end: 1, output_step: 0.1}\n";
-  return s.str();
-}
+std::string ChainYaml(int n) { return mbdae::testing::BallChainYaml(n, 0.1); }
 
 // (q, v) of `model` made consistent, the independent constraints kept; false when it
 // does not assemble.
