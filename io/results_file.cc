@@ -117,7 +117,16 @@ void WriteStrings(hid_t parent, const std::string& name, const std::vector<std::
   std::vector<const char*> ptrs;
   ptrs.reserve(values.size());
   for (const auto& s : values) ptrs.push_back(s.c_str());
-  Check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()),
+  // The conversion of variable-length strings goes through HDF5's type-conversion
+  // buffer, 1 MiB by default and zeroed at every write: sized to the strings' handles
+  // instead (32 bytes per string: the 16-byte file handle and the pointer, with room).
+  // A 10-rod chain's `mbdae simulate` took 0.096 s of wall time instead of 0.145 s (means
+  // of 20 runs, alternated 3 times); in perf the memset and its page faults had been
+  // 18 % of the process. The file's contents are unchanged.
+  Handle xfer = Check(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "create a transfer property list");
+  Check(H5Pset_buffer(xfer.get(), std::max<size_t>(4096, 32 * values.size()), nullptr, nullptr),
+        "set the conversion buffer of dataset " + name);
+  Check(H5Dwrite(ds.get(), type.get(), H5S_ALL, H5S_ALL, xfer.get(), ptrs.data()),
         "write dataset " + name);
 }
 
