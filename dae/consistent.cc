@@ -559,10 +559,6 @@ struct AccelerationSolver::Impl {
   }
 };
 
-AccelerationSolver::AccelerationSolver(MechanicalSystem& system)
-    : impl_(std::make_unique<Impl>(system, 1, false)) {}
-AccelerationSolver::AccelerationSolver(MechanicalSystem& system, int growth_check_interval)
-    : impl_(std::make_unique<Impl>(system, growth_check_interval, false)) {}
 AccelerationSolver::AccelerationSolver(MechanicalSystem& system, int growth_check_interval,
                                        bool tree_elimination)
     : impl_(std::make_unique<Impl>(system, growth_check_interval, tree_elimination)) {}

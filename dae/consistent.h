@@ -72,10 +72,10 @@ std::unique_ptr<MechanicalSystem> KeepConstraints(MechanicalSystem& base, std::v
 class AccelerationSolver {
  public:
   static constexpr int kMaxTreeNode = 48;
-  explicit AccelerationSolver(MechanicalSystem& system);
-  // growth_check_interval: see KluSolver (1: the pivot growth checked at every solve).
-  AccelerationSolver(MechanicalSystem& system, int growth_check_interval);
-  AccelerationSolver(MechanicalSystem& system, int growth_check_interval, bool tree_elimination);
+  // growth_check_interval: see KluSolver (1: the pivot growth checked at every solve);
+  // tree_elimination: above.
+  explicit AccelerationSolver(MechanicalSystem& system, int growth_check_interval = 1,
+                              bool tree_elimination = false);
   ~AccelerationSolver();
   AccelerationSolver(const AccelerationSolver&) = delete;
   AccelerationSolver& operator=(const AccelerationSolver&) = delete;

@@ -149,7 +149,7 @@ class ErkIntegrator final : public Integrator {
         rejected_last_ = true;
         continue;
       }
-      const double err = ErrorNorm(h);
+      const double err = ErrorNorm();
       if (!std::isfinite(err)) {
         ++summary_.steps_rejected;
         h_ = 0.25 * h;
@@ -278,7 +278,7 @@ class ErkIntegrator final : public Integrator {
     return 0;
   }
 
-  double ErrorNorm(double) const {
+  double ErrorNorm() const {
     double sum = 0;
     for (int i = 0; i < nq_; ++i) {
       const double wq = opt_.atol + opt_.rtol * std::max(std::abs(state_.q[i]), std::abs(q1_[i]));

@@ -14,6 +14,7 @@
 #include "dae/consistent.h"
 #include "tests/support/free_body_system.h"
 #include "tests/support/integrator_cases.h"
+#include "tests/support/pendulum_reference.h"
 #include "tests/support/nonlinear_system.h"
 #include "tests/support/pendulum_system.h"
 
@@ -29,24 +30,11 @@ using testing::PendulumSystem;
 
 constexpr double kPi = 3.14159265358979323846;
 
-// The pendulum's angle from the downward vertical, theta'' = -(g/L) sin theta, by the
-// classical 4th-order Runge-Kutta method with 20000 steps per second (a step 200 times
-// below the finest of the order test): a reference independent of the integrator under
-// test and of the DAE form.
+// The RK4 reference with 20000 steps per second (a step 200 times below the finest of
+// the order test).
 double PendulumAngle(double theta0, double omega0, double g_over_L, double t_end) {
-  const int n = static_cast<int>(std::ceil(t_end * 20000));
-  const double h = t_end / n;
-  double th = theta0, om = omega0;
-  auto f = [&](double x) { return -g_over_L * std::sin(x); };
-  for (int i = 0; i < n; ++i) {
-    const double k1t = om, k1o = f(th);
-    const double k2t = om + 0.5 * h * k1o, k2o = f(th + 0.5 * h * k1t);
-    const double k3t = om + 0.5 * h * k2o, k3o = f(th + 0.5 * h * k2t);
-    const double k4t = om + h * k3o, k4o = f(th + h * k3t);
-    th += h / 6 * (k1t + 2 * k2t + 2 * k3t + k4t);
-    om += h / 6 * (k1o + 2 * k2o + 2 * k3o + k4o);
-  }
-  return th;
+  return testing::PendulumAngleRk4(theta0, omega0, g_over_L, t_end,
+                                   static_cast<int>(std::ceil(t_end * 20000)));
 }
 
 // Fixed steps: every step accepted (the tolerances far above the local errors) and the

@@ -14,6 +14,7 @@
 
 #include "dae/hht.h"
 #include "tests/support/free_body_system.h"
+#include "tests/support/pendulum_reference.h"
 #include "tests/support/pendulum_system.h"
 
 namespace mbdae::dae {
@@ -248,20 +249,10 @@ TEST(FreeBodySystem, ConsistentAccelerationGivesEulerEquations) {
 
 // ---------------------------------------------------------------------------------
 // Pendulum reference: theta'' = -(g/L) sin(theta), theta from the downward vertical,
-// integrated with classical RK4 at a tiny step; x = L sin(theta), y = -L cos(theta).
+// integrated with classical RK4 at 200000 steps (tests/support/pendulum_reference.h);
+// x = L sin(theta), y = -L cos(theta).
 std::array<double, 2> PendulumReference(double L, double g, double theta0, double t_end) {
-  const int n = 200000;
-  const double h = t_end / n;
-  double th = theta0, om = 0;
-  auto f = [&](double a) { return -(g / L) * std::sin(a); };
-  for (int i = 0; i < n; ++i) {
-    const double k1t = om, k1o = f(th);
-    const double k2t = om + 0.5 * h * k1o, k2o = f(th + 0.5 * h * k1t);
-    const double k3t = om + 0.5 * h * k2o, k3o = f(th + 0.5 * h * k2t);
-    const double k4t = om + h * k3o, k4o = f(th + h * k3t);
-    th += h / 6 * (k1t + 2 * k2t + 2 * k3t + k4t);
-    om += h / 6 * (k1o + 2 * k2o + 2 * k3o + k4o);
-  }
+  const double th = testing::PendulumAngleRk4(theta0, 0.0, g / L, t_end, 200000);
   return {L * std::sin(th), -L * std::cos(th)};
 }
 
