@@ -120,9 +120,10 @@ void WriteStrings(hid_t parent, const std::string& name, const std::vector<std::
   // The conversion of variable-length strings goes through HDF5's type-conversion
   // buffer, 1 MiB by default and zeroed at every write: sized to the strings' handles
   // instead (32 bytes per string: the 16-byte file handle and the pointer, with room).
-  // A 10-rod chain's `mbdae simulate` took 0.096 s of wall time instead of 0.145 s (means
-  // of 20 runs, alternated 3 times); in perf the memset and its page faults had been
-  // 18 % of the process. The file's contents are unchanged.
+  // A 10-rod chain's `mbdae simulate` takes 0.093-0.098 s of wall time instead of
+  // 0.139-0.142 s (bench/process_time.py, bench/results/process_time.md); in perf the
+  // memset and its page faults had been 18 % of the process. The file's contents are
+  // unchanged.
   Handle xfer = Check(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "create a transfer property list");
   Check(H5Pset_buffer(xfer.get(), std::max<size_t>(4096, 32 * values.size()), nullptr, nullptr),
         "set the conversion buffer of dataset " + name);
