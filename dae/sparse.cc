@@ -46,32 +46,59 @@ bool CscPattern::IsValid(std::string* error) const {
 }
 
 CscPattern CscPattern::FromEntries(int rows, int cols,
-                                   std::vector<std::pair<int, int>> entries) {
+                                   const std::vector<std::pair<int, int>>& entries) {
   if (rows < 0 || cols < 0) throw std::invalid_argument("CscPattern::FromEntries: negative size");
   // col_start has cols + 1 entries, indexed by int.
   if (cols == std::numeric_limits<int>::max())
     throw std::invalid_argument("CscPattern::FromEntries: " + std::to_string(cols) +
                                 " columns are too many (col_start needs cols + 1 entries)");
+  // Entries are counted in int.
+  if (entries.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
+    throw std::invalid_argument("CscPattern::FromEntries: " + std::to_string(entries.size()) +
+                                " entries are too many (at most 2^31 - 1)");
   for (const auto& e : entries)
     if (e.first < 0 || e.first >= rows || e.second < 0 || e.second >= cols)
       throw std::invalid_argument("CscPattern::FromEntries: entry (" + std::to_string(e.first) +
                                   ", " + std::to_string(e.second) + ") outside " +
                                   std::to_string(rows) + " x " + std::to_string(cols));
-  // Sort by (col, row) and merge duplicates.
-  std::sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {
-    return a.second != b.second ? a.second < b.second : a.first < b.first;
-  });
-  entries.erase(std::unique(entries.begin(), entries.end()), entries.end());
+  const int n = static_cast<int>(entries.size());
   CscPattern p;
   p.rows = rows;
   p.cols = cols;
-  p.col_start.assign(cols + 1, 0);
-  p.row_index.resize(entries.size());
-  for (size_t k = 0; k < entries.size(); ++k) {
-    p.row_index[k] = entries[k].first;
-    ++p.col_start[entries[k].second + 1];
-  }
+  // 1. The rows bucketed by column (a counting sort: col_start counts the entries of
+  //    every column, then says where its bucket starts).
+  p.col_start.assign(static_cast<size_t>(cols) + 1, 0);
+  for (const auto& e : entries) ++p.col_start[e.second + 1];
   for (int c = 0; c < cols; ++c) p.col_start[c + 1] += p.col_start[c];
+  std::vector<int> row(n);
+  {
+    std::vector<int> next(p.col_start.begin(), p.col_start.end() - 1);
+    for (const auto& e : entries) row[next[e.second]++] = e.first;
+  }
+  // 2. Every column sorted (insertion sort for the short columns of multibody matrices)
+  //    and its duplicates merged, moved down in place.
+  int out = 0;
+  for (int c = 0; c < cols; ++c) {
+    int* const first = row.data() + p.col_start[c];
+    int* const last = row.data() + p.col_start[c + 1];
+    if (last - first > 32) {
+      std::sort(first, last);
+    } else {
+      for (int* i = first + 1; i < last; ++i) {
+        const int x = *i;
+        int* j = i;
+        for (; j > first && *(j - 1) > x; --j) *j = *(j - 1);
+        *j = x;
+      }
+    }
+    p.col_start[c] = out;
+    for (const int* i = first; i < last; ++i)
+      if (i == first || *i != *(i - 1)) row[out++] = *i;
+  }
+  p.col_start[cols] = out;
+  row.resize(out);
+  if (static_cast<size_t>(out) < row.capacity() / 2) row.shrink_to_fit();
+  p.row_index = std::move(row);
   return p;
 }
 
@@ -124,7 +151,7 @@ void BlockAssembler::Finalize(int rows, int cols) {
   for (const auto& b : blocks_) total += b.entries.size();
   all.reserve(total);
   for (const auto& b : blocks_) all.insert(all.end(), b.entries.begin(), b.entries.end());
-  pattern_ = CscPattern::FromEntries(rows, cols, std::move(all));  // throws if out of range
+  pattern_ = CscPattern::FromEntries(rows, cols, all);  // throws if out of range
   maps_.assign(blocks_.size(), {});
   for (size_t i = 0; i < blocks_.size(); ++i) {
     auto& m = maps_[i];

@@ -24,8 +24,11 @@ struct CscPattern {
   // Checks sizes, sortedness and bounds; returns false with a reason on failure.
   bool IsValid(std::string* error) const;
 
-  // Builds a pattern from (row, col) pairs (duplicates merged).
-  static CscPattern FromEntries(int rows, int cols, std::vector<std::pair<int, int>> entries);
+  // Builds a pattern from (row, col) pairs (duplicates merged): a counting sort by
+  // column, then each column sorted; time O(n + cols + sum of m log m over the columns),
+  // n entries and m per column (linear in n when the columns are short), memory
+  // O(n + cols) and independent of rows.
+  static CscPattern FromEntries(int rows, int cols, const std::vector<std::pair<int, int>>& entries);
 };
 
 // y += alpha * A x, A with pattern p and values val.

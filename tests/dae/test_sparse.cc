@@ -1,6 +1,7 @@
 // Sparse patterns, products and the block assembler against dense references.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <set>
 
@@ -52,6 +53,61 @@ TEST(CscPattern, FromEntriesSortsMergesAndFinds) {
   EXPECT_EQ(p.find(1, 0), -1);
   EXPECT_EQ(p.find(5, 0), -1);
   EXPECT_EQ(p.find(0, 7), -1);
+}
+
+// The straightforward construction FromEntries replaced (sort by column then row, drop
+// duplicates, count per column), as the reference.
+CscPattern SortedReference(int rows, int cols, std::vector<std::pair<int, int>> e) {
+  std::sort(e.begin(), e.end(), [](const auto& a, const auto& b) {
+    return a.second != b.second ? a.second < b.second : a.first < b.first;
+  });
+  e.erase(std::unique(e.begin(), e.end()), e.end());
+  CscPattern p;
+  p.rows = rows;
+  p.cols = cols;
+  p.col_start.assign(cols + 1, 0);
+  for (const auto& x : e) {
+    p.row_index.push_back(x.first);
+    ++p.col_start[x.second + 1];
+  }
+  for (int c = 0; c < cols; ++c) p.col_start[c + 1] += p.col_start[c];
+  return p;
+}
+
+// Random entries in random order with many duplicates, empty columns, columns longer
+// than the insertion-sort limit (32), no rows or no columns: the same pattern as the
+// reference.
+TEST(CscPattern, FromEntriesMatchesSortedReference) {
+  std::mt19937 rng(2024);
+  int long_columns = 0, empty_columns = 0, duplicates = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const int rows = trial % 23 == 0 ? 0 : 1 + static_cast<int>(rng() % (trial % 3 == 0 ? 200 : 12));
+    const int cols = trial % 29 == 0 ? 0 : 1 + static_cast<int>(rng() % 40);
+    const int n = rows == 0 || cols == 0 ? 0 : static_cast<int>(rng() % (3 * rows * cols / 2 + 1));
+    std::vector<std::pair<int, int>> e;
+    for (int k = 0; k < n; ++k) {
+      // Half of the entries in a few columns: long columns and empty ones.
+      const int c = rng() % 2 ? static_cast<int>(rng() % cols) : static_cast<int>(rng() % (1 + cols / 4));
+      e.push_back({static_cast<int>(rng() % rows), c});
+    }
+    const CscPattern ref = SortedReference(rows, cols, e);
+    const CscPattern p = CscPattern::FromEntries(rows, cols, e);
+    std::string err;
+    ASSERT_TRUE(p.IsValid(&err)) << err;
+    EXPECT_EQ(p.rows, rows);
+    EXPECT_EQ(p.cols, cols);
+    ASSERT_EQ(p.col_start, ref.col_start) << "trial " << trial;
+    ASSERT_EQ(p.row_index, ref.row_index) << "trial " << trial;
+    for (int c = 0; c < cols; ++c) {
+      long_columns += ref.col_start[c + 1] - ref.col_start[c] > 32;
+      empty_columns += ref.col_start[c + 1] == ref.col_start[c];
+    }
+    duplicates += static_cast<int>(e.size()) - ref.nnz();
+  }
+  // The random cases cover what they are meant to.
+  EXPECT_GT(long_columns, 20);
+  EXPECT_GT(empty_columns, 100);
+  EXPECT_GT(duplicates, 1000);
 }
 
 TEST(CscPattern, FromEntriesRejectsOutOfRange) {
