@@ -213,6 +213,7 @@ class Sink {
   void Finish(int rows, int cols) {
     pattern_ = dae::CscPattern::FromEntries(rows, cols, entries_);
     position_.clear();
+    position_.reserve(std::count(written_.begin(), written_.end(), true));
     for (size_t k = 0; k < entries_.size(); ++k)
       if (written_[k]) position_.push_back(pattern_.find(entries_[k].first, entries_[k].second));
     entries_.clear();
@@ -856,6 +857,16 @@ void MultibodySystem::Impl::Setup() {
     if (mk.body < -1 || mk.body >= nb)
       throw std::invalid_argument("marker '" + mk.name + "': body index out of range");
   static const char* kCoord[7] = {"x", "y", "z", "e0", "e1", "e2", "e3"};
+  // Sized once (regrowing joint_info alone took 3 % of building a 10^4-body chain).
+  quaternion_offsets.reserve(nb);
+  coordinate_names.reserve(7 * static_cast<size_t>(nb));
+  // An upper bound: at most 6 equations per joint, 1 per body.
+  const size_t equations = nb + 6 * model.joints.size();
+  constraint_names.reserve(equations);
+  constraint_joint.reserve(equations);
+  joint_row.reserve(model.joints.size());
+  joint_locks.reserve(model.joints.size());
+  joint_info.reserve(model.joints.size());
   for (int b = 0; b < nb; ++b) {
     quaternion_offsets.push_back(7 * b + 3);
     for (int k = 0; k < 7; ++k) coordinate_names.push_back(model.bodies[b].name + "." + kCoord[k]);
