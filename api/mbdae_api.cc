@@ -448,7 +448,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, gradient.fd_step, gradient.newton_factor, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 }  // namespace
@@ -503,6 +503,8 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.hht_adaptive = ParseOptionBool(key, value);
   } else if (key == "hht.tolerance") {
     o.hht_tolerance = ParseOptionNumber(key, value);
+  } else if (key == "hht.newton_tolerance") {
+    o.hht_newton_tolerance = ParseOptionNumber(key, value);
   } else if (key == "hht.modified") {
     o.hht_modified = ParseOptionBool(key, value);
   } else if (key == "hht.dense_output") {
@@ -565,6 +567,7 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.step") return Num(s.hht_step);
   if (key == "hht.adaptive") return boolean(s.hht_adaptive);
   if (key == "hht.tolerance") return Num(s.hht_tolerance);
+  if (key == "hht.newton_tolerance") return Num(s.hht_newton_tolerance);
   if (key == "hht.modified") return boolean(s.hht_modified);
   if (key == "hht.dense_output") return boolean(s.hht_dense_output);
   if (key == "ida.dense_output") return boolean(s.ida_dense_output);

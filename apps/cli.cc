@@ -197,6 +197,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--tolerance") {
       only_simulate();
       cl.overrides.hht_tolerance = number();
+    } else if (arg == "--newton-tolerance") {
+      only_simulate();
+      cl.overrides.hht_newton_tolerance = number();
     } else if (arg == "--adaptive") {
       only_simulate();
       no_value();

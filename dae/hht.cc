@@ -70,7 +70,8 @@ bool HhtOptions::IsValid(std::string* error) const {
   if (max_step < 0) return fail("max_step must be >= 0 (0: no limit)");
   if (max_step > 0 && max_step < min_step) return fail("max_step is smaller than min_step");
   if (adaptive && !(tolerance > 0)) return fail("tolerance must be positive");
-  if (!(newton_tolerance > 0)) return fail("newton_tolerance must be positive");
+  if (!(newton_tolerance > 0 && newton_tolerance < 1))
+    return fail("newton_tolerance must be in (0, 1)");
   if (!(adaptive_newton_factor > 0 && adaptive_newton_factor <= 1))
     return fail("adaptive_newton_factor must be in (0, 1]");
   if (max_newton_iterations < 1) return fail("max_newton_iterations must be >= 1");
@@ -802,6 +803,16 @@ class HhtIntegrator final : public Integrator {
                          : opt_.newton_tolerance;
   }
 
+  // The round-off floor of the correction (see TryStep): newton_noise_factor times the
+  // threshold, and for fixed steps at most newton_noise_factor * 1e-12, the floor the
+  // rule was made for: with a loose newton_tolerance a slowly contracting iteration is
+  // not noise (the default threshold 1e-12 gives the same floor as before).
+  double NoiseFloor() const {
+    const double tau = NewtonThreshold();
+    return opt_.newton_noise_factor * (opt_.adaptive ? tau : std::min(tau, kNoiseScale));
+  }
+  static constexpr double kNoiseScale = 1e-12;
+
   // One step of size h from state_; on success an_, lamn_, qn_, vn_, f_ hold the new state.
   StepResult TryStep(double h) {
     const double t1 = state_.t + h;
@@ -873,7 +884,7 @@ class HhtIntegrator final : public Integrator {
           // Round-off floor: corrections that stop contracting while already tiny are
           // noise of the linear solve (the 1/(beta h^2) scaling of C amplifies the
           // rounding of C); accept the iterate instead of failing the step.
-          if (rate > 0.5 && norm <= opt_.newton_noise_factor * NewtonThreshold()) {
+          if (rate > 0.5 && norm <= NoiseFloor()) {
             ++summary_.newton_noise_stops;
             converged = true;
             break;

@@ -115,12 +115,20 @@ double ParameterValue(const mbs::Model& model, const mbs::SensitivityParameter& 
   return model.splines[p.spline].spline.y()[p.point];
 }
 
-// The HHT options of a gradient's forward run: the settings' with the tighter
-// adaptive Newton threshold.
+// What every HHT run of a gradient changes in the settings' options: the tighter
+// adaptive Newton threshold, a fixed-step threshold no looser than the default (a
+// model's looser hht newton_tolerance would leave the runs, and so the gradient, off by
+// that much), and the start the sensitivities differentiate.
+void TightenForGradient(dae::HhtOptions& o, double newton_factor) {
+  o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
+  o.newton_tolerance = std::min(o.newton_tolerance, dae::HhtOptions().newton_tolerance);
+  o.start = dae::HhtOptions::Start::kConsistent;
+}
+
+// The HHT options of a gradient's forward run.
 dae::HhtOptions GradientHhtOptions(const mbs::SimulationSettings& settings, double newton_factor) {
   dae::HhtOptions o = HhtOptionsOf(settings);
-  o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
-  o.start = dae::HhtOptions::Start::kConsistent;  // the start the sensitivities differentiate
+  TightenForGradient(o, newton_factor);
   return o;
 }
 
@@ -255,10 +263,7 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
   // Every HHT run of a gradient (the exact methods' and fd's) uses the tighter Newton
   // threshold, so that fd differentiates the same discrete runs.
   if (hht)
-    so.adjust_hht = [newton_factor](dae::HhtOptions& o) {
-      o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
-      o.start = dae::HhtOptions::Start::kConsistent;  // the start the sensitivities differentiate
-    };
+    so.adjust_hht = [newton_factor](dae::HhtOptions& o) { TightenForGradient(o, newton_factor); };
   if (hht && exact) {
     // The record of the run under the memory budget (checkpoints beyond it:
     // docs/sensitivities.md, "Memory and checkpoints"); a budget too small is bad input.
@@ -361,8 +366,7 @@ GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSet
   po.adjust_hht = so.adjust_hht;
   if (hht && settings.hht_adaptive) {
     po.adjust_hht = [&steps, newton_factor](dae::HhtOptions& o) {
-      o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
-      o.start = dae::HhtOptions::Start::kConsistent;
+      TightenForGradient(o, newton_factor);
       o.replay_steps = steps;
     };
   }

@@ -52,6 +52,7 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   o.tolerance = s.hht_tolerance;
   o.modified = s.hht_modified;
   o.dense_output = s.hht_dense_output;
+  o.newton_tolerance = s.hht_newton_tolerance;
   if (!dae::ParseHhtForm(s.hht_form, &o.form))
     throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
   if (!dae::ParseHhtStart(s.hht_start, &o.start))
@@ -147,6 +148,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_alpha) s.hht_alpha = *o.hht_alpha;
   if (o.hht_step) s.hht_step = *o.hht_step;
   if (o.hht_tolerance) s.hht_tolerance = *o.hht_tolerance;
+  if (o.hht_newton_tolerance) s.hht_newton_tolerance = *o.hht_newton_tolerance;
   if (o.hht_adaptive) s.hht_adaptive = *o.hht_adaptive;
   if (o.hht_modified) s.hht_modified = *o.hht_modified;
   if (o.hht_dense_output) s.hht_dense_output = *o.hht_dense_output;
@@ -473,6 +475,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_form", settings.hht_form);
     file.SetAttribute("hht_start", settings.hht_start);
     file.SetAttribute("hht_dense_output", settings.hht_dense_output ? 1 : 0);
+    file.SetAttribute("hht_newton_tolerance", settings.hht_newton_tolerance);
   } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);

@@ -46,7 +46,7 @@ class InputError : public std::runtime_error {
 struct SettingsOverrides {
   std::optional<double> t_end, output_step;
   std::optional<mbs::IntegratorKind> integrator;
-  std::optional<double> hht_alpha, hht_step, hht_tolerance;
+  std::optional<double> hht_alpha, hht_step, hht_tolerance, hht_newton_tolerance;
   std::optional<bool> hht_adaptive, hht_modified, hht_dense_output;
   std::optional<std::string> hht_form;
   std::optional<std::string> hht_start;             // "perturbed" | "consistent"

@@ -1608,7 +1608,8 @@ class Loader {
                                                  {{"solved", "solved"}, {"integrator", "integrator"}});
     }
     if (const YAML::Node h = node["hht"]) {
-      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output"},
+      CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output",
+                    "newton_tolerance"},
                 "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
@@ -1621,6 +1622,11 @@ class Loader {
       if (const YAML::Node n = h["tolerance"]) s.hht_tolerance = positive(n, "hht tolerance");
       if (const YAML::Node n = h["modified"]) s.hht_modified = Bool(n, element, "modified");
       if (const YAML::Node n = h["dense_output"]) s.hht_dense_output = Bool(n, element, "dense_output");
+      if (const YAML::Node n = h["newton_tolerance"]) {
+        s.hht_newton_tolerance = positive(n, "hht newton_tolerance");
+        if (!(s.hht_newton_tolerance < 1))
+          Fail(n, element, "hht newton_tolerance must be below 1, got " + Num(s.hht_newton_tolerance));
+      }
       if (const YAML::Node n = h["form"]) {
         s.hht_form = Enum<std::string>(n, element, "form",
                                        {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});

@@ -267,6 +267,11 @@ struct SimulationSettings {
   // Dense output (dae/hht.h HhtOptions::dense_output): the steps do not land on the output
   // times, the rows are interpolated (docs/hht.md, "Dense output"). Not with gradients.
   bool hht_dense_output = false;
+  // Newton threshold of fixed steps (dae/hht.h HhtOptions::newton_tolerance; adaptive
+  // steps use max(this, 1e-3 tolerance)): the file's `hht: {newton_tolerance}`. The
+  // default 1e-12 makes a run's result independent of the iteration to round-off; a
+  // looser one trades that for fewer iterations (docs/hht.md, "Newton threshold").
+  double hht_newton_tolerance = 1e-12;
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its

@@ -334,7 +334,10 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
     << ", modified: " << (sim.hht_modified ? "true" : "false") << ", form: " << sim.hht_form
-    << ", start: " << sim.hht_start << (sim.hht_dense_output ? ", dense_output: true" : "") << "}\n";
+    << ", start: " << sim.hht_start << (sim.hht_dense_output ? ", dense_output: true" : "");
+  if (sim.hht_newton_tolerance != SimulationSettings().hht_newton_tolerance)
+    s << ", newton_tolerance: " << Num(sim.hht_newton_tolerance);
+  s << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol);
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;
   if (sim.ida_min_step > 0) s << ", min_step: " << Num(sim.ida_min_step);

@@ -303,6 +303,16 @@ TEST(ApiErrors, BadOptionValuesAreInputErrorsAndChangeNothing) {
   ASSERT_MBDAE_OK(mbdae_set_option(m, "hht.dense_output", "true"));
   ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.dense_output", buf, sizeof buf));
   EXPECT_STREQ(buf, "true");
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.newton_tolerance", buf, sizeof buf));
+  EXPECT_STREQ(buf, "9.9999999999999998e-13");
+  ASSERT_MBDAE_OK(mbdae_set_option(m, "hht.newton_tolerance", "1e-10"));
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.newton_tolerance", buf, sizeof buf));
+  EXPECT_STREQ(buf, "1e-10");
+  EXPECT_EQ(mbdae_set_option(m, "hht.newton_tolerance", "1"), MBDAE_ERROR_INPUT);
+  EXPECT_STREQ(mbdae_last_error(),
+               "option hht.newton_tolerance = 1: hht settings: HhtOptions: newton_tolerance must be in (0, 1)");
+  ASSERT_MBDAE_OK(mbdae_get_option(m, "hht.newton_tolerance", buf, sizeof buf));
+  EXPECT_STREQ(buf, "1e-10");
   ASSERT_MBDAE_OK(mbdae_get_option(m, "ida.dense_output", buf, sizeof buf));
   EXPECT_STREQ(buf, "false");
   ASSERT_MBDAE_OK(mbdae_set_option(m, "ida.dense_output", "true"));

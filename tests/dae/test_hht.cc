@@ -521,6 +521,41 @@ TEST(Hht, StepBudgetStopsACollapsedStepWithAMessage) {
   EXPECT_TRUE(ok->AdvanceTo(1.0)) << ok->summary().message;
 }
 
+// A looser Newton threshold (HhtOptions::newton_tolerance) takes fewer iterations per
+// step, and leaves in every step an error that the run accumulates. On the pendulum at
+// h = 1e-3 (position error 7.4e-6 m at t = 1 s against the RK4 reference): 1e-10 ends
+// 1.4e-8 m from the default run (its error 0.2 % off), 1e-8 ends 2.6e-6 m from it (35 %):
+// the threshold must stay well below what the step size makes of the error.
+TEST(Hht, LooserNewtonToleranceTakesFewerIterationsAndCostsAccuracy) {
+  const auto ref = PendulumReference(1.0, 9.81, M_PI / 2, 1.0);
+  auto run = [&](double tol, Summary* s) {
+    PendulumSystem sys(1.0, 1.0, 9.81);
+    HhtOptions opt;
+    opt.step = 1e-3;
+    opt.newton_tolerance = tol;
+    auto integ = MakeHhtIntegrator(sys, opt);
+    integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+    EXPECT_TRUE(integ->AdvanceTo(1.0)) << integ->summary().BriefReport();
+    *s = integ->summary();
+    return std::array<double, 2>{integ->state().q[0], integ->state().q[1]};
+  };
+  Summary s12, s10, s8;
+  const auto q12 = run(1e-12, &s12), q10 = run(1e-10, &s10), q8 = run(1e-8, &s8);
+  EXPECT_LT(s10.newton_iterations, 0.8 * s12.newton_iterations);
+  EXPECT_LT(s8.newton_iterations, 0.8 * s10.newton_iterations);
+  EXPECT_EQ(s8.steps_rejected, 0);
+  const double e12 = std::hypot(q12[0] - ref[0], q12[1] - ref[1]);
+  EXPECT_GT(e12, 5e-6);
+  const double d10 = std::hypot(q10[0] - q12[0], q10[1] - q12[1]);
+  const double d8 = std::hypot(q8[0] - q12[0], q8[1] - q12[1]);
+  EXPECT_LT(d10, 1e-7);
+  EXPECT_NEAR(std::hypot(q10[0] - ref[0], q10[1] - ref[1]), e12, 1e-2 * e12);
+  EXPECT_GT(d8, 10 * d10);
+  std::printf("pendulum h = 1e-3: error %.4e m; Newton iterations %d (1e-12), %d (1e-10), %d "
+              "(1e-8); end differs by %.2e and %.2e m\n",
+              e12, s12.newton_iterations, s10.newton_iterations, s8.newton_iterations, d10, d8);
+}
+
 TEST(Hht, InvalidOptionsAreRejected) {
   PendulumSystem sys(1.0, 1.0, 9.81);
   HhtOptions opt;
@@ -533,6 +568,12 @@ TEST(Hht, InvalidOptionsAreRejected) {
   opt = HhtOptions();
   opt.step = -1;
   EXPECT_THROW(MakeHhtIntegrator(sys, opt), std::invalid_argument);
+  for (double tol : {0.0, -1e-8, 1.0, std::nan("")}) {
+    opt = HhtOptions();
+    opt.newton_tolerance = tol;
+    EXPECT_FALSE(opt.IsValid(&err)) << tol;
+    EXPECT_EQ(err, "HhtOptions: newton_tolerance must be in (0, 1)");
+  }
   opt = HhtOptions();
   auto integ = MakeHhtIntegrator(sys, opt);
   State bad;

@@ -351,6 +351,14 @@ TEST(Loader, MiscErrors) {
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {integrator: rk4}\n"),
                        "simulation: unknown integrator 'rk4'; did you mean 'erk'? (allowed: hht, ida, kinematic, erk)"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {hht: {adaptive: maybe}}\n"), "'adaptive' must be true or false"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {hht: {newton_tolerance: 0}}\n"),
+                       "m.yaml:2:38: simulation: hht newton_tolerance must be > 0, got 0"));
+  EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {hht: {newton_tolerance: 2}}\n"),
+                       "m.yaml:2:38: simulation: hht newton_tolerance must be below 1, got 2"));
+  EXPECT_EQ(LoadModelFromString("format: 1\nsimulation: {hht: {newton_tolerance: 1e-10}}\n", "m.yaml")
+                .simulation.hht_newton_tolerance,
+            1e-10);
+  EXPECT_EQ(LoadModelFromString("format: 1\n", "m.yaml").simulation.hht_newton_tolerance, 1e-12);
   EXPECT_TRUE(Contains(LoadError("format: 1\nbodies: [{name: b}]\nmeasures: [{name: k, type: translational, i: b.cm, component: x}]\nparameters: {k: 1}\n"),
                        "parameter 'k': a measure has the same name"));
   EXPECT_TRUE(Contains(LoadError("format: 1\nparameters: {sin: 1}\n"), "parameter 'sin': 'sin' is reserved"));
