@@ -512,6 +512,12 @@ class Loader {
   int FindBody(const std::string& name) const {
     return FindIndexed(model_.bodies, body_index_, bodies_indexed_, name);
   }
+  int FindJoint(const std::string& name) const {
+    return FindIndexed(model_.joints, joint_index_, joints_indexed_, name);
+  }
+  int FindForce(const std::string& name) const {
+    return FindIndexed(model_.forces, force_index_, forces_indexed_, name);
+  }
 
   // Marker by full name "BODY.MARKER" / "ground.MARKER".
   int Marker(const YAML::Node& node, const std::string& element, const std::string& key) const {
@@ -1173,9 +1179,7 @@ class Loader {
       Joint joint;
       const std::string element = ItemName(n, "joint", k, &joint.name);
       joint.where = At(n);
-      for (const Joint& other : model_.joints) {
-        if (other.name == joint.name) Fail(n["name"], element, "duplicate joint name");
-      }
+      if (FindJoint(joint.name) >= 0) Fail(n["name"], element, "duplicate joint name");
       CheckName(n["name"], element, joint.name, "joint");
       enum JointKind { kFixed, kSpherical, kRevolute, kPrismatic, kCylindrical, kUniversal, kPlanar, kGeneric, kMotion, kGear };
       const YAML::Node type_node = Required(n, element, "type");
@@ -1307,6 +1311,9 @@ class Loader {
     marker_index_.clear();  // the name indices restart from the extended model
     body_index_.clear();
     markers_indexed_ = bodies_indexed_ = 0;
+    joint_index_.clear();
+    force_index_.clear();
+    joints_indexed_ = forces_indexed_ = 0;
     extended_ = true;
     for (const Measure& m : model_.measures) symbols_.reserved.push_back(m.name);
   }
@@ -1394,9 +1401,7 @@ class Loader {
       Force force;
       const std::string element = ItemName(n, "force", k, &force.name);
       force.where = At(n);
-      for (const Force& other : model_.forces) {
-        if (other.name == force.name) Fail(n["name"], element, "duplicate force name");
-      }
+      if (FindForce(force.name) >= 0) Fail(n["name"], element, "duplicate force name");
       CheckName(n["name"], element, force.name, "force");
       enum ForceKind { kSpring, kForce, kTorque, kBushing, kUser };
       const YAML::Node type_node = Required(n, element, "type");
@@ -1511,13 +1516,10 @@ class Loader {
       Measure& measure = model_.measures[index];
       const std::string element = "measure '" + measure.name + "'";
       const std::string name = node.Scalar();
-      int joint = -1;
-      std::vector<std::string> names;
-      for (size_t k = 0; k < model_.joints.size(); ++k) {
-        names.push_back(model_.joints[k].name);
-        if (model_.joints[k].name == name) joint = static_cast<int>(k);
-      }
+      const int joint = FindJoint(name);
       if (joint < 0) {
+        std::vector<std::string> names;
+        for (const Joint& jt : model_.joints) names.push_back(jt.name);
         Fail(node, element, "'joint': unknown joint '" + name + "'" + Suggest(name, names) +
                                 (names.empty() ? std::string(" (the model has no joints)")
                                                : " (joints: " + Join(names) + ")"));
@@ -1701,6 +1703,10 @@ class Loader {
   // search per lookup made loading a chain of N bodies cost O(N^2).
   mutable std::unordered_map<std::string, int> marker_index_, body_index_;
   mutable size_t markers_indexed_ = 0, bodies_indexed_ = 0;
+  // The same for the duplicate-name checks of joints and forces and the joints of
+  // reaction measures (each was a linear search: O(N^2) for a chain of N joints).
+  mutable std::unordered_map<std::string, int> joint_index_, force_index_;
+  mutable size_t joints_indexed_ = 0, forces_indexed_ = 0;
   SymbolTable symbols_;
   // Reaction measures (Model::measures index) and their `joint` node, until the joints are read.
   std::vector<std::pair<size_t, YAML::Node>> reaction_joints_;

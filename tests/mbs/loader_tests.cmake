@@ -10,3 +10,7 @@ target_compile_definitions(mbs_test_loader PRIVATE MBDAE_SOURCE_DIR="${PROJECT_S
 add_executable(mbs_test_input_checks ${CMAKE_CURRENT_LIST_DIR}/test_input_checks.cc)
 target_link_libraries(mbs_test_input_checks PRIVATE mbdae_mbs GTest::gtest_main)
 gtest_discover_tests(mbs_test_input_checks)
+# Names looked up through the loader's indices (joints, forces, reaction measures' joints).
+add_executable(mbs_test_loader_names ${CMAKE_CURRENT_LIST_DIR}/test_loader_names.cc)
+target_link_libraries(mbs_test_loader_names PRIVATE mbdae_mbs GTest::gtest_main)
+gtest_discover_tests(mbs_test_loader_names)
