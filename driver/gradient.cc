@@ -193,9 +193,14 @@ bool GradientRequest::IsValid(std::string* error) const {
   return assembly.IsValid(error);
 }
 
-GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSettings& settings,
+GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSettings& requested,
                                const GradientRequest& request, const GradientOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
+  // The settings the runs use, as their results file records them: a looser fixed-step
+  // Newton threshold than the default is not taken (TightenForGradient).
+  mbs::SimulationSettings settings = requested;
+  settings.hht_newton_tolerance =
+      std::min(settings.hht_newton_tolerance, dae::HhtOptions().newton_tolerance);
   std::string error;
   if (!request.IsValid(&error)) throw InputError("gradient options: " + error);
 

@@ -8,7 +8,8 @@ and the Python package.
   is 5.9e-6 rad); the attribute hht_newton_tolerance records the threshold;
 - the model file's key: read, overridden by the command line, checked with file and line
   (exit 2, nothing written), written back by `convert` only when not the default;
-- `gradient` ignores a looser threshold (its runs keep 1e-12): the same gradient;
+- `gradient` ignores a looser threshold (its runs keep 1e-12, and its results file says
+  so): the same gradient;
 - the Python package takes options["hht.newton_tolerance"].
 """
 import json
@@ -104,12 +105,15 @@ def test_gradient_keeps_the_default_threshold(tmp_path):
     assert old in text
     (tmp_path / "g.yaml").write_text(text.replace(old, "hht: {step: 1.0e-3, newton_tolerance: 1.0e-4}"))
 
-    def gradient(model):
-        p = run(["gradient", model, "--json", "--wrt", "k,c"], tmp_path)
+    def gradient(model, out):
+        p = run(["gradient", model, "--json", "--wrt", "k,c", "-o", out], tmp_path)
         assert p.returncode == 0, p.stderr
         return json.loads(p.stdout)["objectives"]
 
-    assert gradient("g.yaml") == gradient(demo)
+    assert gradient("g.yaml", "g.h5") == gradient(demo, "d.h5")
+    # The forward run's file records the threshold the run used.
+    with h5py.File(tmp_path / "g.h5", "r") as f:
+        assert f.attrs["hht_newton_tolerance"] == 1e-12
 
 
 def test_python_option(tmp_path):
