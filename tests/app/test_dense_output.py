@@ -10,28 +10,16 @@ docs/dense-output.md) through the program and the Python package.
 - IDA likewise: the same steps for both row spacings, the key, the attribute, gradients.
 """
 import os
-import subprocess
+import sys
 
 import h5py
 import numpy as np
-from scipy.integrate import solve_ivp
 
-MBDAE = os.environ["MBDAE_BIN"]
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
+from pendulum_app import reference_angle, run  # noqa: E402
+
 MODELS = os.environ["MBDAE_APP_MODELS"]
-G, L = 9.81, 1.0
 ADAPTIVE = ["--adaptive", "--tolerance", "1e-6", "--step", "1e-3"]
-
-
-def run(args, cwd):
-    return subprocess.run([MBDAE] + args, cwd=cwd, capture_output=True, text=True, timeout=100)
-
-
-def reference_angle(t):
-    """The link's angle of models/pendulum.yaml: theta'' = -(g/L) cos theta from rest."""
-    sol = solve_ivp(lambda _, y: [y[1], -G / L * np.cos(y[0])], (0, t[-1]), [0.0, 0.0],
-                    method="DOP853", rtol=1e-13, atol=1e-14, dense_output=True)
-    assert sol.success
-    return sol.sol(t)[0]
 
 
 def simulate(tmp_path, name, extra):

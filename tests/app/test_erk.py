@@ -10,28 +10,15 @@ and the Python package.
 - gradients refuse erk; the Python package takes options["integrator"] = "erk".
 """
 import os
-import subprocess
+import sys
 
 import h5py
 import numpy as np
-from scipy.integrate import solve_ivp
 
-MBDAE = os.environ["MBDAE_BIN"]
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
+from pendulum_app import reference_angle, run  # noqa: E402
+
 MODELS = os.environ["MBDAE_APP_MODELS"]
-G, L = 9.81, 1.0
-
-
-def run(args, cwd):
-    return subprocess.run([MBDAE] + args, cwd=cwd, capture_output=True, text=True, timeout=100)
-
-
-def reference_angle(t):
-    """The link's angle from +x (about z) of models/pendulum.yaml, released at rest from
-    the horizontal: theta'' = -(g/L) cos theta."""
-    sol = solve_ivp(lambda _, y: [y[1], -G / L * np.cos(y[0])], (0, t[-1]), [0.0, 0.0],
-                    method="DOP853", rtol=1e-13, atol=1e-14, dense_output=True)
-    assert sol.success
-    return sol.sol(t)[0]
 
 
 def test_pendulum_rows_against_the_reference(tmp_path):
