@@ -1,10 +1,13 @@
 // Seconds per phase of a simulation, for one model file (bench/phases/README.md).
 //
-//   bench_phases MODEL.yaml [--max-seconds S] [--skip PHASE,...]
+//   bench_phases MODEL.yaml [--skip PHASE,...] [--min-calls K]
 //
-// Prints one JSON object: the sizes, and for every phase the CPU seconds of one call (the
-// median of repeated calls for the cheap ones, so that small models are timed above the
-// clock's resolution). Phases, in the order a simulation meets them:
+// Prints one JSON object: the sizes, and for every phase the CPU seconds of one call: the
+// median of at least K calls (default 3; up to 7 while they take under a budget of
+// seconds in all), so that every model size is timed alike, on memory the process has
+// touched before ("seconds"); and the first of those calls ("first_call": with the page
+// faults of fresh memory, as a run pays them once). Phases, in the order a simulation
+// meets them:
 //   load         mbs::LoadModel of the file (parse, checks)
 //   build        mbs::MultibodySystem of the model (patterns, workspaces)
 //   redundancy   dae::FindRedundantConstraints at the initial positions (the rank
@@ -23,8 +26,8 @@
 //   create_file  io::ResultsFile of the run's layout and its attributes (once per run)
 //   write        io::ResultsFile::AppendRow of a row, written as `mbdae simulate` does
 //                (flush interval 0.2 s): the mean over 20 rows and the final flush
-// A phase whose single call took longer than --max-seconds is not repeated; the phases
-// named in --skip are not run (their value is null).
+// hht_step, ida_step and write are means over their steps or rows (one run each); the
+// phases named in --skip are not run (their value is null).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -61,17 +64,26 @@ double Now() {
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-// Seconds of one call of f: the median of up to 7 calls, repeated while the calls so
-// far took less than `budget` seconds in all (a single slow call is not repeated).
-double TimeIt(const std::function<void()>& f, double budget = 0.5) {
+// Seconds of one call of f: the median of at least `min_calls` and up to 7 calls,
+// repeated while the calls so far took less than `budget` seconds in all; *first: the
+// first call's. `reset` (if given) runs before every call, untimed: it frees what the
+// previous call made, so that a call does not pay for its predecessor's destruction.
+// (Before, a slow call was not repeated: small models were timed on memory the process
+// had touched before, large ones on fresh memory, whose page faults cost about 13 us
+// each on this machine (README). Load's exponent of 1.16 came from that mix: each kind
+// of call alone is linear in N.)
+double TimeIt(const std::function<void()>& f, double budget, int min_calls, double* first,
+              const std::function<void()>& reset) {
   std::vector<double> t;
   double total = 0;
   do {
+    if (reset) reset();
     const double t0 = Now();
     f();
     t.push_back(Now() - t0);
     total += t.back();
-  } while (t.size() < 7 && total < budget);
+  } while (t.size() < 7 && (static_cast<int>(t.size()) < min_calls || total < budget));
+  *first = t.front();
   std::sort(t.begin(), t.end());
   return t[t.size() / 2];
 }
@@ -80,29 +92,34 @@ double TimeIt(const std::function<void()>& f, double budget = 0.5) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: bench_phases MODEL.yaml [--skip PHASE,...]\n");
+    std::fprintf(stderr, "usage: bench_phases MODEL.yaml [--skip PHASE,...] [--min-calls K]\n");
     return 2;
   }
   const std::string path = argv[1];
   std::set<std::string> skip;
+  int min_calls = 3;
   for (int i = 2; i + 1 < argc; i += 2) {
     if (std::string(argv[i]) == "--skip") {
       std::stringstream s(argv[i + 1]);
       for (std::string p; std::getline(s, p, ',');) skip.insert(p);
+    } else if (std::string(argv[i]) == "--min-calls") {
+      min_calls = std::max(1, std::min(7, std::atoi(argv[i + 1])));
     }
   }
-  std::map<std::string, double> seconds;
-  auto run = [&](const std::string& name, const std::function<void()>& f, double budget = 0.5) {
+  std::map<std::string, double> seconds, first_call;
+  auto run = [&](const std::string& name, const std::function<void()>& f, double budget = 0.5,
+                 const std::function<void()>& reset = nullptr) {
     if (skip.count(name)) return;
-    seconds[name] = TimeIt(f, budget);
-    std::fprintf(stderr, "bench_phases: %-12s %.6g s\n", name.c_str(), seconds[name]);
+    seconds[name] = TimeIt(f, budget, min_calls, &first_call[name], reset);
+    std::fprintf(stderr, "bench_phases: %-12s %.6g s (first call %.6g s)\n", name.c_str(), seconds[name],
+                 first_call[name]);
   };
 
   mbs::Model model;
-  run("load", [&] { model = mbs::LoadModel(path); });
+  run("load", [&] { model = mbs::LoadModel(path); }, 0.5, [&] { model = mbs::Model(); });
   if (skip.count("load")) model = mbs::LoadModel(path);
   std::unique_ptr<mbs::MultibodySystem> system;
-  run("build", [&] { system = std::make_unique<mbs::MultibodySystem>(model); });
+  run("build", [&] { system = std::make_unique<mbs::MultibodySystem>(model); }, 0.5, [&] { system.reset(); });
   if (!system) system = std::make_unique<mbs::MultibodySystem>(model);
   mbs::MultibodySystem& sys = *system;
   const int nq = sys.num_coordinates(), nc = sys.num_constraints();
@@ -122,7 +139,7 @@ int main(int argc, char** argv) {
     dae::MakeConsistent(sys, y, consistency);
   });
   driver::Assembly asmb;
-  run("assemble", [&] { asmb = driver::Assemble(model); }, 0.0);
+  run("assemble", [&] { asmb = driver::Assemble(model); }, 0.0, [&] { asmb = driver::Assembly(); });
   bool later = false;
   for (const char* p : {"determinacy", "residual", "jacobian", "hht_step", "ida_step", "row", "write"})
     later = later || !skip.count(p);
@@ -212,11 +229,10 @@ int main(int argc, char** argv) {
           driver::DescribeRun(model, asmb, model.simulation, path, "bench");
       std::unique_ptr<io::ResultsFile> file;
       run("create_file", [&] {
-        file.reset();
         file = std::make_unique<io::ResultsFile>(name, run_description.layout);
         file->set_flush_interval(0.2);
         driver::WriteRunAttributes(*file, run_description);
-      }, 0.0);
+      }, 0.0, [&] { file.reset(); });
       driver::OutputRowBuilder rows(model, asmb, model.simulation);
       const io::ResultsRow& row = rows.Compute(asmb.x0);
       constexpr int kRows = 20;
@@ -234,6 +250,12 @@ int main(int argc, char** argv) {
               path.c_str(), model.bodies.size(), nq, nc, asmb.redundant.size(), hht_steps, ida_steps);
   bool first = true;
   for (const auto& [k, v] : seconds) {
+    std::printf("%s\"%s\": %.9g", first ? "" : ", ", k.c_str(), v);
+    first = false;
+  }
+  std::printf("}, \"first_call\": {");
+  first = true;
+  for (const auto& [k, v] : first_call) {
     std::printf("%s\"%s\": %.9g", first ? "" : ", ", k.c_str(), v);
     first = false;
   }

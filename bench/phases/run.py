@@ -5,13 +5,15 @@
                                          [--label NAME] [--out FILE.json] [--timeout S]
 
 For every N: writes the chain of bench/scenes/ball_chain.py (into a temporary folder),
-runs DIR/bench/bench_phases on it (seconds per phase, see bench_phases.cc) and times
+runs DIR/bench/bench_phases on it (seconds per phase, see bench_phases.cc: the median of
+at least 3 calls, and the first call) and times
 `DIR/mbdae check` on it (CPU time of the process, user + system, best of 3 when a run
 takes under 10 s of wall time, else one run). Every number is CPU time: on a machine
 shared with other work, wall time measures that work too.
 Then fits the exponent of every phase by least squares on log t against log N over the
-three largest N, and writes the JSON of all numbers (--out, default
-bench/phases/results-LABEL.json) and prints a Markdown table. A run that takes longer
+three largest N (of the medians, and of the first calls), and writes the JSON of all
+numbers (--out, default bench/phases/results-LABEL.json) and prints two Markdown tables:
+medians and first calls. A run that takes longer
 than --timeout seconds (default 1800) is stopped and its phases left empty.
 """
 import argparse
@@ -62,16 +64,16 @@ def time_check(mbdae, model, timeout):
     return best
 
 
-def table(result):
+def table(result, seconds="seconds", exponents="exponents"):
     ns = result["n"]
     lines = ["| phase | " + " | ".join("N = %d" % n for n in ns) + " | exponent (3 largest N) |",
              "| --- |" + " --- |" * (len(ns) + 1)]
     for p in PHASES:
-        row = result["seconds"].get(p)
-        if row is None:
+        row = result[seconds].get(p)
+        if row is None or all(t is None for t in row):
             continue
         cells = ["-" if t is None else "%.3g" % t for t in row]
-        e = result["exponents"].get(p)
+        e = result[exponents].get(p)
         lines.append("| %s | %s | %s |" % (p, " | ".join(cells), "-" if e is None else "%.2f" % e))
     return "\n".join(lines)
 
@@ -88,12 +90,14 @@ def main():
     a.build = os.path.abspath(a.build)
     bench = os.path.join(a.build, "bench", "bench_phases")
     mbdae = os.path.join(a.build, "mbdae")
-    result = {"label": a.label, "n": a.n, "seconds": {p: [] for p in PHASES}, "sizes": []}
+    result = {"label": a.label, "n": a.n, "seconds": {p: [] for p in PHASES},
+              "first_call": {p: [] for p in PHASES}, "sizes": []}
     with tempfile.TemporaryDirectory() as tmp:
         for n in a.n:
             model = os.path.join(tmp, "chain%d.yaml" % n)
             ball_chain.write_chain(model, n)
-            cmd = [bench, model] + (["--skip", a.skip] if a.skip else [])
+            # Run in the temporary folder on the file name: the results name no machine path.
+            cmd = [bench, os.path.basename(model)] + (["--skip", a.skip] if a.skip else [])
             print("N = %d: %s" % (n, " ".join(cmd)), file=sys.stderr)
             try:
                 out = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, text=True,
@@ -101,16 +105,22 @@ def main():
                 data = json.loads(out.strip().splitlines()[-1])
             except subprocess.TimeoutExpired:
                 data = {"seconds": {}, "timed_out": a.timeout}
-            result["sizes"].append({k: v for k, v in data.items() if k != "seconds"})
+            result["sizes"].append({k: v for k, v in data.items() if k not in ("seconds", "first_call")})
             check = None if "check" in a.skip.split(",") else time_check(mbdae, model, a.timeout)
             data["seconds"]["check"] = check
             for p in PHASES:
                 result["seconds"][p].append(data["seconds"].get(p))
+                # The process of `check` runs once: its time is its first call.
+                result["first_call"][p].append(data.get("first_call", {}).get(p, check if p == "check" else None))
     result["exponents"] = {p: fit(a.n[-3:], result["seconds"][p][-3:]) for p in PHASES}
+    result["first_call_exponents"] = {p: fit(a.n[-3:], result["first_call"][p][-3:]) for p in PHASES}
     out = a.out or os.path.join(HERE, "results-%s.json" % a.label)
     with open(out, "w") as f:
         json.dump(result, f, indent=1)
+    print("Median of the calls (CPU seconds):\n")
     print(table(result))
+    print("\nFirst call (CPU seconds; phases timed per step or row have none):\n")
+    print(table(result, "first_call", "first_call_exponents"))
 
 
 if __name__ == "__main__":
