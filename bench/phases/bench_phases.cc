@@ -69,7 +69,7 @@ double Now() {
 // first call's. `reset` (if given) runs before every call, untimed: it frees what the
 // previous call made, so that a call does not pay for its predecessor's destruction.
 // (Before, a slow call was not repeated: small models were timed on memory the process
-// had touched before, large ones on fresh memory, whose page faults cost about 13 us
+// had touched before, large ones on fresh memory, whose page faults cost about 17 us
 // each on this machine (README). Load's exponent of 1.16 came from that mix: each kind
 // of call alone is linear in N.)
 double TimeIt(const std::function<void()>& f, double budget, int min_calls, double* first,
