@@ -161,6 +161,7 @@ struct ResultsFile::Impl {
   RowDataset kinetic, potential, position_violation, velocity_violation;
   std::vector<double> zeros;
   double flush_interval = 0;
+  double last_flush_seconds = 0;  // wall time the last flush took
   std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
 
   long written = 0;  // rows already in the datasets; rows - written are pending
@@ -331,8 +332,14 @@ void ResultsFile::AppendRow(const ResultsRow& row) {
   m.Append(m.velocity_violation, &row.velocity_violation);
   ++m.rows;
   const auto now = std::chrono::steady_clock::now();
+  // With a positive interval, also at least 10 times as long as the last flush took, so
+  // that flushing stays within about a tenth of the run's wall time: a flush writes
+  // every dataset (four per body, two per joint) and the file's metadata; on the
+  // 1000-rod chain one took about 60 ms, and at five a second the file cost more than
+  // the integration (bench/README.md, "Flushing the results file").
   if (m.flush_interval <= 0 ||
-      std::chrono::duration<double>(now - m.last_flush).count() >= m.flush_interval)
+      std::chrono::duration<double>(now - m.last_flush).count() >=
+          std::max(m.flush_interval, 10 * m.last_flush_seconds))
     Flush();
 }
 
@@ -599,9 +606,11 @@ void ResultsFile::WriteStringDataset(const std::string& dataset_path, const std:
 
 void ResultsFile::Flush() {
   QuietErrors quiet;
+  const auto start = std::chrono::steady_clock::now();
   impl_->WriteAllPending();
   Check(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), "flush " + impl_->path);
   impl_->last_flush = std::chrono::steady_clock::now();
+  impl_->last_flush_seconds = std::chrono::duration<double>(impl_->last_flush - start).count();
 }
 
 long ResultsFile::rows() const { return impl_->rows; }

@@ -101,9 +101,10 @@ class ResultsFile {
   void WriteIntegerTable(const std::string& dataset_path, int cols, const std::vector<long>& values);
   void WriteStringDataset(const std::string& dataset_path, const std::vector<std::string>& values);
   void Flush();  // writes the pending rows and flushes the file
-  // Added: AppendRow flushes when at least this many seconds (wall clock) passed since
-  // the last flush; 0 (the default) flushes after every row. A positive value bounds
-  // what a killed run loses to that much computing time and makes long outputs cheap.
+  // Added: AppendRow flushes when at least this many seconds (wall clock), and at least
+  // 10 times what the last flush took, passed since the last flush; 0 (the default)
+  // flushes after every row. A positive value bounds what a killed run loses to that
+  // much computing time (or 10 flushes' time) and makes long outputs cheap.
   void set_flush_interval(double seconds);
   long rows() const;
   const std::string& path() const;
