@@ -12,20 +12,14 @@
 #include "mbs/freedyn.h"
 #include "mbs/kinematics.h"
 #include "mbs/loader.h"
+#include "tests/support/load_error.h"
 #include "mbs/system.h"
 #include "mbs/user_force.h"
 
 namespace mbdae::mbs {
 namespace {
 
-std::string LoadError(const std::string& text, const std::string& file = "m.yaml") {
-  try {
-    LoadModelFromString(text, file);
-  } catch (const ModelError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::LoadError;
 
 std::string FreeDynError(const std::string& text) {
   try {

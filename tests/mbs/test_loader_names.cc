@@ -7,18 +7,12 @@
 #include <string>
 
 #include "mbs/loader.h"
+#include "tests/support/load_error.h"
 
 namespace mbdae::mbs {
 namespace {
 
-std::string LoadError(const std::string& text, const std::string& file = "m.yaml") {
-  try {
-    LoadModelFromString(text, file);
-  } catch (const ModelError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::LoadError;
 
 // A chain of n bodies b1..bn joined by spherical joints j1..jn (j1 to the ground), a
 // force f1..fn on every body and a reaction measure r1..rn of every joint.

@@ -17,6 +17,7 @@
 #include "mbs/model_writer.h"
 #include "mbs/system.h"
 #include "mbs/user_force.h"
+#include "tests/support/load_error.h"
 #include "tests/support/random_models.h"
 
 namespace mbdae::mbs {
@@ -33,14 +34,7 @@ const std::string kLibrary = MBDAE_EXAMPLE_USER_FORCE_LIBRARY;
 
 bool Contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
-std::string LoadError(const std::string& text, const std::string& file = "m.yaml") {
-  try {
-    LoadModelFromString(text, file);
-  } catch (const ModelError& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::LoadError;
 
 // Two bodies; FORCES is the text of the forces block entries.
 std::string TwoBodies(const std::string& forces) {
