@@ -1209,10 +1209,13 @@ OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOp
     SimulationOptions so;
     so.model_path = problem.model_path;
     so.results_path = options.results_path;
-    // HHT from the consistent start, as the gradient runs: the final run is the run of
-    // the final point that the optimiser saw (hht.start perturbed would move it by O(h^2)).
+    // HHT from the consistent start and with no looser Newton threshold than the default,
+    // as the gradient runs: the final run is the run of the final point that the optimiser
+    // saw (hht.start perturbed would move it by O(h^2), a loose threshold by about that).
     mbs::SimulationSettings settings = problem.settings;
     settings.hht_start = "consistent";
+    settings.hht_newton_tolerance =
+        std::min(settings.hht_newton_tolerance, dae::HhtOptions().newton_tolerance);
     r.final_run = Simulate(model, asmb, settings, so);
     ++r.runs;
     if (r.final_run.status == SimulationSummary::Status::kDone) {

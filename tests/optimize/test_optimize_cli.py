@@ -340,3 +340,23 @@ def test_signal_removes_the_temporary_file_and_keeps_the_earlier_one(tmp_path, s
     proc = start_until_temporary([MBDAE, "optimize", str(problem), "--quiet", "-o", str(out)],
                                  tmp_path)
     signal_keeps_earlier_file(proc, out, tmp_path, signum, b"earlier results")
+
+
+def test_a_looser_newton_threshold_of_the_model_is_not_taken(tmp_path):
+    """hht: {newton_tolerance: 1e-4} in the model: the gradient runs and the final run keep
+    1e-12 (docs/hht.md, "Newton threshold"), so the optimisation and its file are the
+    default's."""
+    problem = copy_problem(tmp_path)
+    p = optimize(problem, "--json", "-o", str(tmp_path / "d.h5"))
+    default = json.loads(p.stdout)
+    text = (tmp_path / "rotor.yaml").read_text()
+    assert "hht: {step: 1.0e-3}" in text
+    (tmp_path / "rotor.yaml").write_text(text.replace("hht: {step: 1.0e-3}",
+                                                      "hht: {step: 1.0e-3, newton_tolerance: 1.0e-4}"))
+    p = optimize(problem, "--json", "-o", str(tmp_path / "l.h5"))
+    loose = json.loads(p.stdout)
+    assert loose["objective"] == default["objective"]
+    assert loose["variables"] == default["variables"]
+    with h5py.File(tmp_path / "l.h5", "r") as f, h5py.File(tmp_path / "d.h5", "r") as g:
+        assert f.attrs["hht_newton_tolerance"] == 1e-12
+        assert np.array_equal(f["/q"][:], g["/q"][:])
