@@ -115,13 +115,11 @@ double ParameterValue(const mbs::Model& model, const mbs::SensitivityParameter& 
   return model.splines[p.spline].spline.y()[p.point];
 }
 
-// What every HHT run of a gradient changes in the settings' options: the tighter
-// adaptive Newton threshold, a fixed-step threshold no looser than the default (a
-// model's looser hht newton_tolerance would leave the runs, and so the gradient, off by
-// that much), and the start the sensitivities differentiate.
+// What every HHT run of a gradient changes in the options of its settings
+// (GradientRunSettings): the tighter adaptive Newton threshold and the start the
+// sensitivities differentiate.
 void TightenForGradient(dae::HhtOptions& o, double newton_factor) {
   o.adaptive_newton_factor = std::min(o.adaptive_newton_factor, newton_factor);
-  o.newton_tolerance = std::min(o.newton_tolerance, dae::HhtOptions().newton_tolerance);
   o.start = dae::HhtOptions::Start::kConsistent;
 }
 
@@ -193,14 +191,17 @@ bool GradientRequest::IsValid(std::string* error) const {
   return assembly.IsValid(error);
 }
 
+mbs::SimulationSettings GradientRunSettings(const mbs::SimulationSettings& settings) {
+  mbs::SimulationSettings s = settings;
+  s.hht_newton_tolerance = std::min(s.hht_newton_tolerance, dae::HhtOptions().newton_tolerance);
+  return s;
+}
+
 GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSettings& requested,
                                const GradientRequest& request, const GradientOptions& options) {
   const auto wall_start = std::chrono::steady_clock::now();
-  // The settings the runs use, as their results file records them: a looser fixed-step
-  // Newton threshold than the default is not taken (TightenForGradient).
-  mbs::SimulationSettings settings = requested;
-  settings.hht_newton_tolerance =
-      std::min(settings.hht_newton_tolerance, dae::HhtOptions().newton_tolerance);
+  // The settings the runs use, as their results file records them.
+  const mbs::SimulationSettings settings = GradientRunSettings(requested);
   std::string error;
   if (!request.IsValid(&error)) throw InputError("gradient options: " + error);
 

@@ -123,4 +123,10 @@ struct GradientResult {
 GradientResult ComputeGradient(const mbs::Model& model, const mbs::SimulationSettings& settings,
                                const GradientRequest& request, const GradientOptions& options);
 
+// The settings whose runs a gradient differentiates (ComputeGradient's runs, optimize's
+// final run): a fixed-step HHT Newton threshold no looser than the default 1e-12 (a
+// model's looser hht.newton_tolerance would leave the runs, and so the gradient, off by
+// about that much).
+mbs::SimulationSettings GradientRunSettings(const mbs::SimulationSettings& settings);
+
 }  // namespace mbdae::driver

@@ -1212,10 +1212,8 @@ OptimizationResult Optimize(const OptimizationProblem& problem, const OptimizeOp
     // HHT from the consistent start and with no looser Newton threshold than the default,
     // as the gradient runs: the final run is the run of the final point that the optimiser
     // saw (hht.start perturbed would move it by O(h^2), a loose threshold by about that).
-    mbs::SimulationSettings settings = problem.settings;
+    mbs::SimulationSettings settings = GradientRunSettings(problem.settings);
     settings.hht_start = "consistent";
-    settings.hht_newton_tolerance =
-        std::min(settings.hht_newton_tolerance, dae::HhtOptions().newton_tolerance);
     r.final_run = Simulate(model, asmb, settings, so);
     ++r.runs;
     if (r.final_run.status == SimulationSummary::Status::kDone) {

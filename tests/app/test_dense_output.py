@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
-from pendulum_app import reference_angle, run  # noqa: E402
+from pendulum_app import reference_angle, run, run_ok  # noqa: E402
 
 MODELS = os.environ["MBDAE_APP_MODELS"]
 ADAPTIVE = ["--adaptive", "--tolerance", "1e-6", "--step", "1e-3"]
@@ -65,20 +65,16 @@ def test_dense_output_key_of_the_model_file(tmp_path):
     good = text.replace(old, "  hht: {alpha: -0.1, step: 1.0e-3, adaptive: true, tolerance: 1.0e-6, "
                              "dense_output: true}\n")
     (tmp_path / "p.yaml").write_text(good)
-    p = run(["simulate", "p.yaml", "-o", "p.h5", "--quiet"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    p = run_ok(["simulate", "p.yaml", "-o", "p.h5", "--quiet"], tmp_path)
     with h5py.File(tmp_path / "p.h5", "r") as f:
         assert f.attrs["hht_dense_output"] == 1
     # The command line overrides it.
-    p = run(["simulate", "p.yaml", "-o", "n.h5", "--quiet", "--no-dense-output"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["simulate", "p.yaml", "-o", "n.h5", "--quiet", "--no-dense-output"], tmp_path)
     with h5py.File(tmp_path / "n.h5", "r") as f:
         assert f.attrs["hht_dense_output"] == 0
-    p = run(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
     assert "dense_output: true}" in (tmp_path / "q.yaml").read_text()
-    p = run(["simulate", "q.yaml", "-o", "q.h5", "--quiet"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    p = run_ok(["simulate", "q.yaml", "-o", "q.h5", "--quiet"], tmp_path)
     with h5py.File(tmp_path / "q.h5", "r") as f, h5py.File(tmp_path / "p.h5", "r") as g:
         assert np.array_equal(f["/q"][:], g["/q"][:])
     # A value that is not a boolean: exit 2 with the file and line, nothing written.
@@ -134,12 +130,10 @@ def test_ida_dense_output(tmp_path):
     good = text.replace(old, "  ida: {rtol: 1.0e-8, atol: 1.0e-10, dense_output: true}\n").replace(
         "  integrator: hht\n", "  integrator: ida\n")
     (tmp_path / "p.yaml").write_text(good)
-    p = run(["simulate", "p.yaml", "-o", "p.h5", "--quiet"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    p = run_ok(["simulate", "p.yaml", "-o", "p.h5", "--quiet"], tmp_path)
     with h5py.File(tmp_path / "p.h5", "r") as f:
         assert f.attrs["ida_dense_output"] == 1
-    p = run(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
     assert "dense_output: true}" in (tmp_path / "q.yaml").read_text()
     quintic = os.path.join(MODELS, "..", "..", "..", "examples", "robot_energy", "quintic.yaml")
     qt = open(quintic).read()

@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
-from pendulum_app import reference_angle, run  # noqa: E402
+from pendulum_app import reference_angle, run, run_ok  # noqa: E402
 
 MODELS = os.environ["MBDAE_APP_MODELS"]
 
@@ -67,20 +67,17 @@ def test_erk_block_of_the_model_file(tmp_path):
                         "  integrator: erk\n  erk: {rtol: 1.0e-9, atol: 1.0e-11, max_steps: 1000, "
                         "max_step: 0.02}\n")
     (tmp_path / "p.yaml").write_text(good)
-    p = run(["simulate", "p.yaml", "-o", "p.h5", "--quiet"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    p = run_ok(["simulate", "p.yaml", "-o", "p.h5", "--quiet"], tmp_path)
     with h5py.File(tmp_path / "p.h5", "r") as f:
         assert f.attrs["integrator"] == "erk"
         assert f.attrs["erk_rtol"] == 1e-9 and f.attrs["erk_atol"] == 1e-11
         assert f.attrs["erk_max_steps"] == 1000 and f.attrs["erk_max_step"] == 0.02
     # Written back by convert and read again with the same settings.
-    p = run(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
     written = (tmp_path / "q.yaml").read_text()
     assert "integrator: erk" in written and "erk: {rtol: 1e-09, atol: 1e-11, max_steps: 1000, " \
         "max_step: 0.02}" in written, written
-    p = run(["simulate", "q.yaml", "-o", "q.h5", "--quiet"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    p = run_ok(["simulate", "q.yaml", "-o", "q.h5", "--quiet"], tmp_path)
     with h5py.File(tmp_path / "q.h5", "r") as f, h5py.File(tmp_path / "p.h5", "r") as g:
         assert np.array_equal(f["/q"][:], g["/q"][:])
     # Bad values: exit 2 with the file and line of the value, nothing written.

@@ -20,15 +20,14 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
-from pendulum_app import reference_angle, run  # noqa: E402
+from pendulum_app import reference_angle, run, run_ok  # noqa: E402
 
 MODELS = os.environ["MBDAE_APP_MODELS"]
 PENDULUM = os.path.join(MODELS, "pendulum.yaml")
 
 
 def simulate(tmp_path, model, name, extra=()):
-    p = run(["simulate", model, "-o", name, "--quiet", *extra], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["simulate", model, "-o", name, "--quiet", *extra], tmp_path)
     return h5py.File(tmp_path / name, "r")
 
 
@@ -67,11 +66,9 @@ def test_model_file_key_override_errors_and_convert(tmp_path):
             simulate(tmp_path, PENDULUM, "d.h5") as d:
         assert f.attrs["hht_newton_tolerance"] == 1e-12
         assert np.array_equal(f["/q"][:], d["/q"][:])
-    p = run(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
     assert "newton_tolerance: 1e-10}" in (tmp_path / "q.yaml").read_text()
-    p = run(["convert", PENDULUM, "-o", "r.yaml"], tmp_path)
-    assert p.returncode == 0, p.stderr
+    run_ok(["convert", PENDULUM, "-o", "r.yaml"], tmp_path)
     assert "newton_tolerance" not in (tmp_path / "r.yaml").read_text()
     line = good[:good.index("  hht:")].count("\n") + 1
     for bad_value, what in (("0", "must be > 0"), ("1.5", "must be below 1"), ("abc", "newton_tolerance")):
@@ -94,8 +91,7 @@ def test_gradient_keeps_the_default_threshold(tmp_path):
     (tmp_path / "g.yaml").write_text(text.replace(old, "hht: {step: 1.0e-3, newton_tolerance: 1.0e-4}"))
 
     def gradient(model, out):
-        p = run(["gradient", model, "--json", "--wrt", "k,c", "-o", out], tmp_path)
-        assert p.returncode == 0, p.stderr
+        p = run_ok(["gradient", model, "--json", "--wrt", "k,c", "-o", out], tmp_path)
         return json.loads(p.stdout)["objectives"]
 
     assert gradient("g.yaml", "g.h5") == gradient(demo, "d.h5")

@@ -19,6 +19,13 @@ def run(args, cwd):
                           text=True, timeout=100)
 
 
+def run_ok(args, cwd):
+    """run(args, cwd), asserting that it exits 0 (its stderr otherwise)."""
+    p = run(args, cwd)
+    assert p.returncode == 0, p.stderr
+    return p
+
+
 def reference_angle(t):
     """The link's angle from +x (about z) at the times t (increasing, from 0):
     theta'' = -(g/L) cos theta from rest, by scipy's DOP853 at rtol 1e-13."""
