@@ -264,6 +264,8 @@ void AddCounters(const dae::Summary& from, dae::Summary* to) {
   to->factorizations += from.factorizations;
   to->residual_evaluations += from.residual_evaluations;
   to->newton_noise_stops += from.newton_noise_stops;
+  to->klu_fallbacks += from.klu_fallbacks;
+  if (!from.linear_solver.empty()) to->linear_solver = from.linear_solver;
 }
 
 // Adds the counters of the current integrator to finished_counters and drops it.
@@ -448,7 +450,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, gradient.fd_step, gradient.newton_factor, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 }  // namespace
@@ -517,6 +519,12 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
       throw ApiError(MBDAE_ERROR_INPUT,
                      "option hht.form: expected equilibrium or negrut, got '" + v + "'");
     o.hht_form = v;
+  } else if (key == "hht.linear_solver") {
+    const std::string v = value;
+    if (v != "klu" && v != "tree")
+      throw ApiError(MBDAE_ERROR_INPUT,
+                     "option hht.linear_solver: expected klu or tree, got '" + v + "'");
+    o.hht_linear_solver = v;
   } else if (key == "ida.rtol") {
     o.ida_rtol = ParseOptionNumber(key, value);
   } else if (key == "ida.atol") {
@@ -572,6 +580,7 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.dense_output") return boolean(s.hht_dense_output);
   if (key == "ida.dense_output") return boolean(s.ida_dense_output);
   if (key == "hht.form") return s.hht_form;
+  if (key == "hht.linear_solver") return s.hht_linear_solver;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);
   if (key == "ida.max_steps") return std::to_string(s.ida_max_steps);

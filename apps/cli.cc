@@ -230,6 +230,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--hht-start") {
       only_simulate();
       cl.overrides.hht_start = choice({"consistent", "perturbed"});
+    } else if (arg == "--linear-solver") {
+      only_simulate();
+      cl.overrides.hht_linear_solver = choice({"klu", "tree"});
     } else if (arg == "--output-accelerations") {
       only_simulate();
       cl.overrides.output_accelerations = choice({"solved", "integrator"});

@@ -53,6 +53,7 @@
 #include <utility>
 
 #include "dae/consistent.h"
+#include "dae/block_tree_lu.h"
 #include "dae/klu_solver.h"
 
 namespace mbdae::dae {
@@ -101,6 +102,21 @@ bool ParseHhtStart(const std::string& name, HhtOptions::Start* start) {
     *start = HhtOptions::Start::kPerturbed;
   } else if (name == "consistent") {
     *start = HhtOptions::Start::kConsistent;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+const char* HhtLinearSolverName(HhtOptions::LinearSolver solver) {
+  return solver == HhtOptions::LinearSolver::kTree ? "tree" : "klu";
+}
+
+bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* solver) {
+  if (name == "klu") {
+    *solver = HhtOptions::LinearSolver::kKlu;
+  } else if (name == "tree") {
+    *solver = HhtOptions::LinearSolver::kTree;
   } else {
     return false;
   }
@@ -245,7 +261,11 @@ class HhtIntegrator final : public Integrator {
     for (Matrix m : {Matrix::kMass, Matrix::kConstraintDq})
       mat_[static_cast<int>(m)].assign(sys_.pattern(m).nnz(), 0.0);
     jac_.assign(newton_.pattern().nnz(), 0.0);
-    klu_ = std::make_unique<KluSolver>(newton_.pattern());
+    if (opt_.linear_solver == HhtOptions::LinearSolver::kTree)
+      tree_ = BlockTreeLu::ForMechanicalSystem(newton_.pattern(), sys_.pattern(Matrix::kMass),
+                                               sys_.pattern(Matrix::kConstraintDq),
+                                               kMaxTreeNode, &tree_refusal_);
+    if (!tree_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
 
     const int n = nq_ + nc_;
     for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_})
@@ -271,6 +291,7 @@ class HhtIntegrator final : public Integrator {
                                   std::to_string(nq_) + ", nc = " + std::to_string(nc_) + ")");
     state_ = x0;
     summary_ = Summary();
+    summary_.linear_solver = LinearSolverReport();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
     h_prev_ = 0;
@@ -366,6 +387,7 @@ class HhtIntegrator final : public Integrator {
       throw std::invalid_argument("HHT::RestoreSnapshot: the snapshot's step sizes or step count are invalid");
     state_ = s;
     summary_ = Summary();
+    summary_.linear_solver = LinearSolverReport();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = s.t;
     h_prev_ = hist[HhtHistory::kHPrev];
@@ -779,13 +801,55 @@ class HhtIntegrator final : public Integrator {
       return rc;
     }
     ++summary_.factorizations;
-    if (!klu_->Factor(jac_.data(), error)) return 1;
+    if (!FactorNewtonMatrix(error)) return 1;
     jacobian_valid_ = true;
     jacobian_fresh_ = true;
     jacobian_h_ = h;
     steps_with_jacobian_ = 0;
     return 0;
   }
+
+  // Factorises jac_: by the block tree elimination when it was set up and its pivots are
+  // usable (the rule of AccelerationSolver for dae/tree_kkt.h: a pivot ratio above
+  // kMinTreeRcond and not below kTreeRcondDrop times the first), else by KLU, which
+  // takes over for good when the very first tree factorisation fails (e.g. a loop
+  // closed through the ground, which the forest does not see).
+  bool FactorNewtonMatrix(std::string* error) {
+    use_tree_ = false;
+    if (tree_) {
+      if (tree_->Factor(jac_.data())) {
+        const double rc = tree_->rcond();
+        if (tree_rcond_first_ == 0 && rc > kMinTreeRcond) tree_rcond_first_ = rc;
+        if (std::isfinite(rc) && rc > kMinTreeRcond && rc > kTreeRcondDrop * tree_rcond_first_) {
+          use_tree_ = true;
+          return true;
+        }
+      }
+      ++summary_.klu_fallbacks;
+      if (tree_rcond_first_ == 0) {
+        tree_.reset();
+        tree_refusal_ = "the first factorisation's pivots were unusable";
+        summary_.linear_solver = LinearSolverReport();
+      }
+    }
+    if (!klu_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
+    return klu_->Factor(jac_.data(), error);
+  }
+  void SolveNewton(double* x) const {
+    if (use_tree_)
+      tree_->Solve(x);
+    else
+      klu_->Solve(x);
+  }
+  std::string LinearSolverReport() const {
+    if (tree_) return "tree";
+    if (opt_.linear_solver == HhtOptions::LinearSolver::kTree)
+      return "klu (no tree: " + tree_refusal_ + ")";
+    return "klu";
+  }
+  static constexpr int kMaxTreeNode = 48;
+  static constexpr double kMinTreeRcond = 1e-14;
+  static constexpr double kTreeRcondDrop = 1e-6;
 
   // Weighted RMS norm of the position- and velocity-level Newton correction.
   double CorrectionNorm(double h) const {
@@ -856,7 +920,7 @@ class HhtIntegrator final : public Integrator {
         }
         ++summary_.newton_iterations;
         for (int i = 0; i < nq_ + nc_; ++i) x_[i] = -res_[i];
-        klu_->Solve(x_.data());
+        SolveNewton(x_.data());
         for (int i = 0; i < nq_; ++i) an_[i] += x_[i];
         for (int j = 0; j < nc_; ++j) lamn_[j] += x_[nq_ + j];
         const double norm = CorrectionNorm(h);
@@ -972,7 +1036,11 @@ class HhtIntegrator final : public Integrator {
   HhtNewtonMatrix newton_;
   std::vector<double> mat_[kNumMatrices];  // M and C_q of the residual
   std::vector<double> jac_;
-  std::unique_ptr<KluSolver> klu_;
+  std::unique_ptr<KluSolver> klu_;  // null until needed when tree_ is set
+  std::unique_ptr<BlockTreeLu> tree_;
+  std::string tree_refusal_;
+  bool use_tree_ = false;  // the last factorisation is tree_'s
+  double tree_rcond_first_ = 0;
   // Work vectors (sized in the constructor; no allocation while stepping).
   std::vector<double> qn_, vn_, an_, lamn_, fn_, f_, force_, con_, res_, x_;
   std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)

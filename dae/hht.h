@@ -76,6 +76,14 @@ struct HhtOptions {
   // linear solve and is accepted as converged (counted in Summary::newton_noise_stops).
   double newton_noise_factor = 1e4;
   int max_newton_iterations = 10;
+  // The linear solver of the Newton matrix (docs/hht.md, "Linear solver"): kKlu (default)
+  // sparse LU by KLU; kTree the block elimination along the tree of bodies, each with the
+  // joint to its parent (dae/block_tree_lu.h): no fill and dense small blocks, for systems
+  // whose bodies, joints and forces form a tree. Where the system is no such tree, kTree
+  // uses KLU (Summary::linear_solver says which ran), and a factorisation whose pivot ratio
+  // is tiny or has dropped is redone by KLU (counted in Summary::klu_fallbacks).
+  enum class LinearSolver { kKlu, kTree };
+  LinearSolver linear_solver = LinearSolver::kKlu;
   // One AdvanceTo call fails (with a message) after this many step attempts beyond the
   // number the nominal step needs to reach its target: the step size has collapsed
   // (as SUNDIALS' mxstep). 0: no limit.
@@ -107,6 +115,10 @@ struct HhtOptions {
 
   bool IsValid(std::string* error) const;
 };
+
+// "klu" | "tree"; and the inverse (false for an unknown name).
+const char* HhtLinearSolverName(HhtOptions::LinearSolver solver);
+bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* solver);
 
 // "equilibrium" | "negrut"; and the inverse (false for an unknown name).
 const char* HhtFormName(HhtOptions::Form form);

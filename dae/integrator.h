@@ -37,6 +37,10 @@ struct Summary {
   long factorizations = 0;   // numeric (re)factorisations
   long residual_evaluations = 0;
   long newton_noise_stops = 0;  // HHT: Newton iterations accepted at the round-off floor
+  // HHT: the linear solver of its Newton matrix ("klu" or "tree", HhtOptions::linear_solver;
+  // "tree" also when some factorisations fell back to KLU), and how many did.
+  std::string linear_solver;
+  long klu_fallbacks = 0;
   double h_last = 0;         // last step size used
 
   std::string BriefReport() const;

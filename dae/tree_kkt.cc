@@ -10,6 +10,8 @@
 #include <tuple>
 #include <utility>
 
+#include "dae/dense_lu.h"
+
 namespace mbdae::dae {
 
 namespace {
@@ -20,69 +22,6 @@ int FindRoot(std::vector<int>& parent, int i) {
     i = parent[i];
   }
   return i;
-}
-
-// The dense kernels are templates on the block sizes: MT, PT > 0 (PT >= 0) fix m and p at
-// compile time, so that the loops of the common small blocks unroll (a spherical joint's
-// 3 rows, a body's 7 coordinates and normalisation); MT = 0, PT = -1 take m_rt, p_rt.
-
-// In-place LU with partial pivoting of the row-major m x m matrix a: P a = L U, L unit
-// lower (below the diagonal), U upper; piv[k] the row swapped with row k at step k.
-// Returns false at a zero or non-finite pivot; *umin, *umax take the pivots' magnitudes.
-template <int MT>
-inline bool DenseLu(double* a, int m_rt, int* piv, double* umin, double* umax) {
-  const int m = MT > 0 ? MT : m_rt;
-  for (int k = 0; k < m; ++k) {
-    int p = k;
-    double best = std::abs(a[k * m + k]);
-    for (int r = k + 1; r < m; ++r)
-      if (std::abs(a[r * m + k]) > best) best = std::abs(a[(p = r) * m + k]);
-    piv[k] = p;
-    if (!(best > 0) || !std::isfinite(best)) return false;
-    if (p != k)
-      for (int c = 0; c < m; ++c) std::swap(a[k * m + c], a[p * m + c]);
-    *umin = std::min(*umin, best);
-    *umax = std::max(*umax, best);
-    const double inv = 1.0 / a[k * m + k];
-    for (int r = k + 1; r < m; ++r) {
-      double* row = a + r * m;
-      const double l = (row[k] *= inv);
-      if (l == 0) continue;
-      const double* urow = a + k * m;
-      for (int c = k + 1; c < m; ++c) row[c] -= l * urow[c];
-    }
-  }
-  return true;
-}
-
-// Solves (P^T L U) X = B in place for the row-major m x n matrix b.
-template <int MT, int NT>
-inline void DenseLuSolve(const double* lu, int m_rt, const int* piv, double* b, int n_rt) {
-  const int m = MT > 0 ? MT : m_rt;
-  const int n = NT >= 0 ? NT : n_rt;
-  for (int k = 0; k < m; ++k)
-    if (piv[k] != k)
-      for (int c = 0; c < n; ++c) std::swap(b[k * n + c], b[piv[k] * n + c]);
-  for (int k = 0; k < m; ++k) {
-    const double* bk = b + k * n;
-    for (int r = k + 1; r < m; ++r) {
-      const double l = lu[r * m + k];
-      if (l == 0) continue;
-      double* br = b + r * n;
-      for (int c = 0; c < n; ++c) br[c] -= l * bk[c];
-    }
-  }
-  for (int k = m - 1; k >= 0; --k) {
-    double* bk = b + k * n;
-    for (int r = k + 1; r < m; ++r) {
-      const double u = lu[k * m + r];
-      if (u == 0) continue;
-      const double* br = b + r * n;
-      for (int c = 0; c < n; ++c) bk[c] -= u * br[c];
-    }
-    const double inv = 1.0 / lu[k * m + k];
-    for (int c = 0; c < n; ++c) bk[c] *= inv;
-  }
 }
 
 // One node of the factorisation: D = L U (in place), W = D^-1 K_ip, D_p -= K_ip^T W.
@@ -175,12 +114,11 @@ struct TreeKktSolver::Impl {
 TreeKktSolver::TreeKktSolver() : impl_(std::make_unique<Impl>()) {}
 TreeKktSolver::~TreeKktSolver() = default;
 
-std::unique_ptr<TreeKktSolver> TreeKktSolver::Analyze(const CscPattern& mass,
-                                                      const CscPattern& cq, int max_node_size,
-                                                      std::string* why) {
+bool BodyJointForest::Find(const CscPattern& mass, const CscPattern& cq, BodyJointForest* f,
+                           std::string* why) {
   auto refuse = [&](const std::string& reason) {
     if (why) *why = reason;
-    return std::unique_ptr<TreeKktSolver>();
+    return false;
   };
   const int nq = mass.cols, nc = cq.rows;
   if (mass.rows != nq || cq.cols != nq)
@@ -292,9 +230,6 @@ std::unique_ptr<TreeKktSolver> TreeKktSolver::Analyze(const CscPattern& mass,
     }
   int largest = 0;
   for (int i = 0; i < nn; ++i) largest = std::max(largest, static_cast<int>(vars[i].size()));
-  if (largest > max_node_size)
-    return refuse("a node has " + std::to_string(largest) + " unknowns (more than " +
-                  std::to_string(max_node_size) + ")");
   // Breadth-first from the lowest-numbered body of each tree; reversed, every node comes
   // after its children.
   std::vector<int> bfs, parent(nn, -1);
@@ -316,6 +251,31 @@ std::unique_ptr<TreeKktSolver> TreeKktSolver::Analyze(const CscPattern& mass,
     }
   }
   assert(static_cast<int>(bfs.size()) == nn);
+  f->num_bodies = nb;
+  f->vars = std::move(vars);
+  f->parent = std::move(parent);
+  f->order = std::move(bfs);
+  f->largest = largest;
+  return true;
+}
+
+std::unique_ptr<TreeKktSolver> TreeKktSolver::Analyze(const CscPattern& mass,
+                                                      const CscPattern& cq, int max_node_size,
+                                                      std::string* why) {
+  BodyJointForest f;
+  if (!BodyJointForest::Find(mass, cq, &f, why)) return nullptr;
+  if (f.largest > max_node_size) {
+    if (why)
+      *why = "a node has " + std::to_string(f.largest) + " unknowns (more than " +
+             std::to_string(max_node_size) + ")";
+    return nullptr;
+  }
+  const int nq = mass.cols, nc = cq.rows;
+  const int nn = static_cast<int>(f.vars.size());
+  const std::vector<std::vector<int>>& vars = f.vars;
+  const std::vector<int>& parent = f.parent;
+  const std::vector<int>& bfs = f.order;
+  const int largest = f.largest;
   std::unique_ptr<TreeKktSolver> solver(new TreeKktSolver());
   Impl& m = *solver->impl_;
   m.n = nq + nc;

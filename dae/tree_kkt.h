@@ -36,6 +36,24 @@
 
 namespace mbdae::dae {
 
+// The body-joint graph of a system, from the patterns of M (nq x nq) and C_q (nc x nq) as
+// described above: nodes 0..num_bodies-1 are the bodies, the others the joints; vars[i]
+// the unknowns of node i (coordinate j as j, constraint row r as nq + r); parent[i] the
+// neighbour of node i towards its tree's root (-1: a root, always a body); order every
+// node breadth-first from the roots (parents before children); largest the most
+// unknowns of a node. Find returns false with the reason in *why when the graph is not a
+// forest or a constraint row touches no coordinate.
+struct BodyJointForest {
+  int num_bodies = 0;
+  std::vector<std::vector<int>> vars;
+  std::vector<int> parent;
+  std::vector<int> order;
+  int largest = 0;
+
+  static bool Find(const CscPattern& mass, const CscPattern& constraint_dq,
+                   BodyJointForest* forest, std::string* why);
+};
+
 class TreeKktSolver {
  public:
   // The tree structure of K from the patterns of M (nq x nq) and C_q (nc x nq), or null

@@ -57,6 +57,9 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
     throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
   if (!dae::ParseHhtStart(s.hht_start, &o.start))
     throw InputError("hht settings: start must be perturbed or consistent, got '" + s.hht_start + "'");
+  if (!dae::ParseHhtLinearSolver(s.hht_linear_solver, &o.linear_solver))
+    throw InputError("hht settings: linear_solver must be klu or tree, got '" +
+                     s.hht_linear_solver + "'");
   return o;
 }
 
@@ -155,6 +158,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.ida_dense_output) s.ida_dense_output = *o.ida_dense_output;
   if (o.hht_form) s.hht_form = *o.hht_form;
   if (o.hht_start) s.hht_start = *o.hht_start;
+  if (o.hht_linear_solver) s.hht_linear_solver = *o.hht_linear_solver;
   if (o.output_accelerations) s.output_accelerations = *o.output_accelerations;
   if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
@@ -476,6 +480,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_start", settings.hht_start);
     file.SetAttribute("hht_dense_output", settings.hht_dense_output ? 1 : 0);
     file.SetAttribute("hht_newton_tolerance", settings.hht_newton_tolerance);
+    file.SetAttribute("hht_linear_solver", settings.hht_linear_solver);
   } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
@@ -515,6 +520,10 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
   file.SetAttribute("jacobian_evaluations", summary.counters.jacobian_evaluations);
   file.SetAttribute("factorizations", summary.counters.factorizations);
   file.SetAttribute("residual_evaluations", summary.counters.residual_evaluations);
+  if (!summary.counters.linear_solver.empty()) {
+    file.SetAttribute("linear_solver_used", summary.counters.linear_solver);
+    file.SetAttribute("klu_fallbacks", summary.counters.klu_fallbacks);
+  }
   file.SetAttribute("wall_time", summary.wall_time);
   file.SetAttribute("solver_cpu_time", summary.solver_cpu_time);
   file.SetAttribute("max_position_violation", summary.max_position_violation);

@@ -50,6 +50,7 @@ struct SettingsOverrides {
   std::optional<bool> hht_adaptive, hht_modified, hht_dense_output;
   std::optional<std::string> hht_form;
   std::optional<std::string> hht_start;             // "perturbed" | "consistent"
+  std::optional<std::string> hht_linear_solver;     // "klu" | "tree"
   std::optional<std::string> output_accelerations;  // "solved" | "integrator"
   std::optional<double> ida_rtol, ida_atol;
   std::optional<long> ida_max_steps;

@@ -1611,7 +1611,7 @@ class Loader {
     }
     if (const YAML::Node h = node["hht"]) {
       CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output",
-                    "newton_tolerance"},
+                    "newton_tolerance", "linear_solver"},
                 "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
@@ -1636,6 +1636,10 @@ class Loader {
       if (const YAML::Node n = h["start"]) {
         s.hht_start = Enum<std::string>(n, element, "start",
                                         {{"perturbed", "perturbed"}, {"consistent", "consistent"}});
+      }
+      if (const YAML::Node n = h["linear_solver"]) {
+        s.hht_linear_solver = Enum<std::string>(n, element, "linear_solver",
+                                                {{"klu", "klu"}, {"tree", "tree"}});
       }
     }
     if (const YAML::Node i = node["ida"]) {

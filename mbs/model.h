@@ -272,6 +272,10 @@ struct SimulationSettings {
   // default 1e-12 makes a run's result independent of the iteration to round-off; a
   // looser one trades that for fewer iterations (docs/hht.md, "Newton threshold").
   double hht_newton_tolerance = 1e-12;
+  // The linear solver of HHT's Newton matrix (dae/hht.h HhtOptions::linear_solver):
+  // "klu" (sparse LU) or "tree" (block elimination along a tree of bodies, KLU where the
+  // system is no tree); the file's `hht: {linear_solver}` (docs/hht.md, "Linear solver").
+  std::string hht_linear_solver = "klu";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its

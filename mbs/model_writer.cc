@@ -337,6 +337,8 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
     << ", start: " << sim.hht_start << (sim.hht_dense_output ? ", dense_output: true" : "");
   if (sim.hht_newton_tolerance != SimulationSettings().hht_newton_tolerance)
     s << ", newton_tolerance: " << Num(sim.hht_newton_tolerance);
+  if (sim.hht_linear_solver != SimulationSettings().hht_linear_solver)
+    s << ", linear_solver: " << sim.hht_linear_solver;
   s << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol);
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;

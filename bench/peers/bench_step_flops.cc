@@ -37,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "dae/block_tree_lu.h"
 #include "dae/consistent.h"
 #include "dae/hht.h"
 #include "dae/klu_solver.h"
@@ -158,11 +159,14 @@ void FlopCounters(benchmark::State& state, BareKlu& klu, bool factor, bool solve
       benchmark::Counter(flops * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
 }
 
-// Arguments: N, k; the Newton threshold is 10^-k (12: the default HhtOptions).
+// Arguments: N, k, s; the Newton threshold is 10^-k (12: the default HhtOptions), the
+// linear solver KLU (s = 0, the default) or the block tree elimination (s = 1,
+// HhtOptions::LinearSolver::kTree).
 void BM_HhtStep(benchmark::State& state) {
   Chain& c = GetChain(static_cast<int>(state.range(0)));
   dae::HhtOptions hht = c.hht;
   hht.newton_tolerance = std::pow(10.0, -static_cast<double>(state.range(1)));
+  if (state.range(2) == 1) hht.linear_solver = dae::HhtOptions::LinearSolver::kTree;
   auto integ = dae::MakeHhtIntegrator(*c.system, hht);
   dae::Summary base;
   double newton = 0, factor = 0, jacobian = 0, rejected = 0;
@@ -203,6 +207,7 @@ void BM_HhtStep(benchmark::State& state) {
     ++in_window;
   }
   close_window();
+  if (integ->summary().klu_fallbacks > 0) state.SkipWithError("the tree fell back to KLU");
   SizeCounters(state, c);
   using benchmark::Counter;
   state.counters["newton_per_step"] = Counter(newton, Counter::kAvgIterations);
@@ -291,6 +296,48 @@ void BM_KluSolverFactorSolve(benchmark::State& state) {
       static_cast<double>(klu.factorizations() - full_before), benchmark::Counter::kAvgIterations);
 }
 
+// The block tree elimination of the same matrix (dae/block_tree_lu.h): arg 1 = factor and
+// solve, 2 = factor alone, 3 = solve alone; the relative difference of its solution from
+// KLU's (max norm) as a counter.
+void BM_TreeLu(benchmark::State& state) {
+  Chain& c = GetChain(static_cast<int>(state.range(0)));
+  const int what = static_cast<int>(state.range(1));
+  std::string why;
+  auto tree = dae::BlockTreeLu::ForMechanicalSystem(
+      c.newton->pattern(), c.system->pattern(dae::Matrix::kMass),
+      c.system->pattern(dae::Matrix::kConstraintDq), 48, &why);
+  if (!tree || !tree->Factor(c.jac.data(), &why)) {
+    state.SkipWithError(why.c_str());
+    return;
+  }
+  const std::vector<double> rhs = RightSide(c.newton->pattern().rows);
+  std::vector<double> x = rhs, xk = rhs;
+  for (auto _ : state) {
+    if (what != 3 && !tree->Factor(c.jac.data(), &why)) {
+      state.SkipWithError(why.c_str());
+      break;
+    }
+    if (what != 2) {
+      x = rhs;
+      tree->Solve(x.data());
+      benchmark::DoNotOptimize(x.data());
+    }
+    benchmark::ClobberMemory();
+  }
+  SizeCounters(state, c);
+  x = rhs;
+  tree->Solve(x.data());
+  BareKlu klu(c.newton->pattern(), c.jac);
+  klu.Solve(xk.data());
+  double diff = 0, scale = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    diff = std::max(diff, std::abs(x[i] - xk[i]));
+    scale = std::max(scale, std::abs(xk[i]));
+  }
+  state.counters["diff_vs_klu"] = diff / scale;
+  state.counters["rcond"] = tree->rcond();
+}
+
 void BM_DenseGemm(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
   Eigen::MatrixXd a = Eigen::MatrixXd::Random(n, n), b = Eigen::MatrixXd::Random(n, n), r(n, n);
@@ -342,15 +389,21 @@ int main(int argc, char** argv) {
     for (const Entry& e : entries) {
       if (e.fn == BM_HhtStep) {
         // The default threshold 1e-12, and looser ones (HhtOptions::newton_tolerance).
-        for (int k : {12, 10, 8, 6})
-          benchmark::RegisterBenchmark(e.name, e.fn)
-              ->Args({m.first, k})
-              ->Unit(benchmark::kMicrosecond)
-              ->Iterations(m.first <= 100 ? 5 * kWindowSteps : kWindowSteps);
+        for (int solver : {0, 1})
+          for (int k : {12, 10, 8, 6})
+            benchmark::RegisterBenchmark(e.name, e.fn)
+                ->Args({m.first, k, solver})
+                ->Unit(benchmark::kMicrosecond)
+                ->Iterations(m.first <= 100 ? 5 * kWindowSteps : kWindowSteps);
       } else {
         benchmark::RegisterBenchmark(e.name, e.fn)->Arg(m.first)->Unit(benchmark::kMicrosecond);
       }
     }
+  for (const auto& m : g_models)
+    for (int what : {1, 2, 3})
+      benchmark::RegisterBenchmark("BM_TreeLu", BM_TreeLu)
+          ->Args({m.first, what})
+          ->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("BM_DenseGemm", BM_DenseGemm)->Arg(256)->Unit(benchmark::kMicrosecond);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -1,0 +1,103 @@
+"""HHT's linear solver (`hht: {linear_solver}`, `--linear-solver`,
+options["hht.linear_solver"]; docs/hht.md, "Linear solver") through the program and the
+Python package.
+
+- models/pendulum.yaml (a tree of one body): `tree` takes the same 500 steps as `klu`
+  and its rows agree to round-off (measured 0 to 1e-15 rad); the attributes
+  hht_linear_solver and linear_solver_used say `tree`;
+- models/fourbar.yaml (a loop closed through the ground, which the forest of bodies and
+  joints does not see): the first tree factorisation meets a zero pivot, KLU takes over
+  for the run, linear_solver_used gives the reason and the run is bitwise KLU's;
+- the model file's key: read, overridden by the command line, checked with file and line
+  (exit 2, nothing written), written back by `convert` only when not the default;
+- the Python package takes options["hht.linear_solver"].
+"""
+import os
+import sys
+
+import h5py
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
+from pendulum_app import run, run_ok  # noqa: E402
+
+MODELS = os.environ["MBDAE_APP_MODELS"]
+PENDULUM = os.path.join(MODELS, "pendulum.yaml")
+FOURBAR = os.path.join(MODELS, "fourbar.yaml")
+
+
+def simulate(tmp_path, model, name, extra=()):
+    run_ok(["simulate", model, "-o", name, "--quiet", *extra], tmp_path)
+    return h5py.File(tmp_path / name, "r")
+
+
+def test_tree_takes_the_same_steps_on_a_tree(tmp_path):
+    with simulate(tmp_path, PENDULUM, "k.h5") as k, \
+            simulate(tmp_path, PENDULUM, "t.h5", ["--linear-solver", "tree"]) as t:
+        assert k.attrs["hht_linear_solver"] == "klu"
+        assert k.attrs["linear_solver_used"] == "klu"
+        assert t.attrs["hht_linear_solver"] == "tree"
+        assert t.attrs["linear_solver_used"] == "tree"
+        assert t.attrs["klu_fallbacks"] == 0
+        assert t.attrs["steps_accepted"] == k.attrs["steps_accepted"] == 500
+        diff = np.max(np.abs(t["/measures/angle"][:] - k["/measures/angle"][:]))
+        print("pendulum: rows of tree and klu apart by %.1e rad" % diff)
+        assert diff < 1e-12
+
+
+def test_a_loop_through_the_ground_falls_back_to_klu(tmp_path):
+    extra = ["--integrator", "hht", "--t-end", "0.2"]
+    with simulate(tmp_path, FOURBAR, "k.h5", extra) as k, \
+            simulate(tmp_path, FOURBAR, "t.h5", extra + ["--linear-solver", "tree"]) as t:
+        used = t.attrs["linear_solver_used"]
+        assert used.startswith("klu (no tree: ") and "pivots" in used, used
+        assert t.attrs["klu_fallbacks"] == 1
+        assert np.array_equal(t["/q"][:], k["/q"][:])
+
+
+def test_model_file_key_override_errors_and_convert(tmp_path):
+    text = open(PENDULUM).read()
+    old = "  hht: {alpha: -0.1, step: 1.0e-3}\n"
+    assert old in text
+    good = text.replace(old, "  hht: {alpha: -0.1, step: 1.0e-3, linear_solver: tree}\n")
+    (tmp_path / "p.yaml").write_text(good)
+    with simulate(tmp_path, "p.yaml", "p.h5") as f:
+        assert f.attrs["hht_linear_solver"] == "tree"
+        assert f.attrs["linear_solver_used"] == "tree"
+    with simulate(tmp_path, "p.yaml", "o.h5", ["--linear-solver", "klu"]) as f, \
+            simulate(tmp_path, PENDULUM, "d.h5") as d:
+        assert f.attrs["linear_solver_used"] == "klu"
+        assert np.array_equal(f["/q"][:], d["/q"][:])
+    run_ok(["convert", "p.yaml", "-o", "q.yaml"], tmp_path)
+    assert "linear_solver: tree}" in (tmp_path / "q.yaml").read_text()
+    run_ok(["convert", PENDULUM, "-o", "r.yaml"], tmp_path)
+    assert "linear_solver" not in (tmp_path / "r.yaml").read_text()
+    line = good[:good.index("  hht:")].count("\n") + 1
+    (tmp_path / "bad.yaml").write_text(good.replace("linear_solver: tree", "linear_solver: lu"))
+    p = run(["simulate", "bad.yaml", "-o", "bad.h5"], tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert "bad.yaml:%d:" % line in p.stderr and "linear_solver" in p.stderr, p.stderr
+    assert not (tmp_path / "bad.h5").exists()
+    p = run(["simulate", PENDULUM, "-o", "bad.h5", "--linear-solver", "lu"], tmp_path)
+    assert p.returncode == 2 and "--linear-solver" in p.stderr, p.stderr
+    assert not (tmp_path / "bad.h5").exists()
+
+
+def test_python_option():
+    import mbdae
+    angles = {}
+    for solver in ("klu", "tree"):
+        with mbdae.Model(PENDULUM) as m:
+            assert m.options["hht.linear_solver"] == "klu"
+            m.options["hht.linear_solver"] = solver
+            assert m.options["hht.linear_solver"] == solver
+            m.solve()
+            angles[solver] = np.array(m.outputs.measure("angle"))
+    assert len(angles["tree"]) == 51
+    assert np.max(np.abs(angles["tree"] - angles["klu"])) < 1e-12
+    with mbdae.Model(PENDULUM) as m:
+        try:
+            m.options["hht.linear_solver"] = "lu"
+            raise AssertionError("accepted 'lu'")
+        except mbdae.Error as e:
+            assert "expected klu or tree" in str(e)

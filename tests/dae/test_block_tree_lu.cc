@@ -1,0 +1,361 @@
+// The block tree elimination (dae/block_tree_lu.h): solutions against a dense LU on random
+// nonsymmetric forests (fixed-size and generic kernels), against KLU on HHT's Newton matrix
+// of a chain of rods (with springs between neighbours, which couple bodies directly), its
+// refusals, and HHT with HhtOptions::LinearSolver::kTree against KLU (the same steps and
+// states to round-off; a loop falls back to KLU with the reason).
+#include "dae/block_tree_lu.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "dae/consistent.h"
+#include "dae/hht.h"
+#include "dae/klu_solver.h"
+#include "mbs/loader.h"
+#include "mbs/system.h"
+#include "tests/support/ball_chain.h"
+
+namespace mbdae::dae {
+namespace {
+
+double RelativeDifference(const std::vector<double>& x, const std::vector<double>& y) {
+  double d = 0, s = 0;
+  for (size_t i = 0; i < y.size(); ++i) {
+    d = std::max(d, std::abs(x[i] - y[i]));
+    s = std::max(s, std::abs(y[i]));
+  }
+  return s > 0 ? d / s : d;
+}
+
+// A random forest of `nn` nodes with sizes in 1..max_size, its unknowns shuffled, and a
+// nonsymmetric matrix on it: dense diagonal blocks made diagonally dominant, dense blocks
+// between each node and its parent with some entries left out of the pattern.
+struct RandomForest {
+  std::vector<std::vector<int>> nodes;
+  std::vector<int> parent;
+  Eigen::MatrixXd dense;
+  CscPattern pattern;
+  std::vector<double> values;
+};
+
+RandomForest MakeRandomForest(int nn, int max_size, unsigned seed) {
+  std::mt19937 gen(seed);
+  std::uniform_int_distribution<int> size(1, max_size);
+  std::uniform_real_distribution<double> u(-1, 1), coin(0, 1);
+  RandomForest f;
+  f.nodes.resize(nn);
+  f.parent.resize(nn);
+  int n = 0;
+  for (int i = 0; i < nn; ++i) {
+    const int s = size(gen);
+    for (int k = 0; k < s; ++k) f.nodes[i].push_back(n++);
+    // Node 0 and about one in five others are roots; the rest hang below an earlier node.
+    f.parent[i] = (i == 0 || coin(gen) < 0.2) ? -1 : std::uniform_int_distribution<int>(0, i - 1)(gen);
+  }
+  std::vector<int> shuffle(n);
+  for (int k = 0; k < n; ++k) shuffle[k] = k;
+  std::shuffle(shuffle.begin(), shuffle.end(), gen);
+  for (auto& node : f.nodes)
+    for (int& x : node) x = shuffle[x];
+  f.dense = Eigen::MatrixXd::Zero(n, n);
+  std::vector<std::pair<int, int>> entries;
+  auto put = [&](int r, int c, double v) {
+    f.dense(r, c) = v;
+    entries.push_back({r, c});
+  };
+  for (int i = 0; i < nn; ++i) {
+    for (int r : f.nodes[i])
+      for (int c : f.nodes[i]) put(r, c, r == c ? 0.0 : u(gen));
+    if (f.parent[i] < 0) continue;
+    for (int r : f.nodes[i])
+      for (int c : f.nodes[f.parent[i]]) {
+        if (coin(gen) < 0.7) put(r, c, u(gen));
+        if (coin(gen) < 0.7) put(c, r, u(gen));
+      }
+  }
+  for (int r = 0; r < n; ++r) f.dense(r, r) = 2.0 + f.dense.row(r).cwiseAbs().sum();
+  f.pattern = CscPattern::FromEntries(n, n, entries);
+  f.values.assign(f.pattern.nnz(), 0.0);
+  for (int c = 0; c < n; ++c)
+    for (int k = f.pattern.col_start[c]; k < f.pattern.col_start[c + 1]; ++k)
+      f.values[k] = f.dense(f.pattern.row_index[k], c);
+  return f;
+}
+
+TEST(BlockTreeLu, MatchesDenseLuOnRandomForests) {
+  // Node sizes up to 12 (the fixed-size kernels) and up to 16 (the generic ones).
+  for (int max_size : {12, 16})
+    for (unsigned seed = 1; seed <= 20; ++seed) {
+      RandomForest f = MakeRandomForest(25, max_size, seed);
+      std::string why;
+      auto lu = BlockTreeLu::Analyze(f.pattern, f.nodes, f.parent, 48, &why);
+      ASSERT_TRUE(lu) << why;
+      ASSERT_TRUE(lu->Factor(f.values.data(), &why)) << why;
+      const int n = f.pattern.rows;
+      std::vector<double> b(n), x(n), ref(n);
+      for (int i = 0; i < n; ++i) b[i] = std::sin(0.3 * i + seed);
+      x = b;
+      lu->Solve(x.data());
+      const Eigen::VectorXd r = f.dense.partialPivLu().solve(Eigen::Map<Eigen::VectorXd>(b.data(), n));
+      for (int i = 0; i < n; ++i) ref[i] = r[i];
+      EXPECT_LT(RelativeDifference(x, ref), 1e-12) << "max size " << max_size << ", seed " << seed;
+      EXPECT_GT(lu->rcond(), 0);
+      EXPECT_EQ(lu->num_nodes(), 25);
+      // A second factorisation with other values (the pattern's zeros stay zero).
+      for (double& v : f.values) v *= 1.5;
+      ASSERT_TRUE(lu->Factor(f.values.data(), &why)) << why;
+      x = b;
+      lu->Solve(x.data());
+      for (int i = 0; i < n; ++i) EXPECT_NEAR(x[i], ref[i] / 1.5, 1e-12 * (1 + std::abs(ref[i])));
+    }
+}
+
+TEST(BlockTreeLu, RefusesWhatIsNoForestAndReportsZeroPivots) {
+  // Three nodes {0}, {1}, {2}: 1 and 2 below 0.
+  const std::vector<std::vector<int>> nodes = {{0}, {1}, {2}};
+  const std::vector<int> parent = {-1, 0, 0};
+  std::string why;
+  const CscPattern ok = CscPattern::FromEntries(3, 3, {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {2, 0}});
+  EXPECT_TRUE(BlockTreeLu::Analyze(ok, nodes, parent, 48, &why)) << why;
+  // An entry between the two children.
+  const CscPattern siblings = CscPattern::FromEntries(3, 3, {{0, 0}, {1, 1}, {2, 2}, {1, 2}});
+  EXPECT_FALSE(BlockTreeLu::Analyze(siblings, nodes, parent, 48, &why));
+  EXPECT_NE(why.find("entry (1, 2) couples nodes 1 and 2"), std::string::npos) << why;
+  EXPECT_FALSE(BlockTreeLu::Analyze(ok, {{0}, {1, 0}, {2}}, parent, 48, &why));
+  EXPECT_NE(why.find("unknown 0 is in nodes 0 and 1"), std::string::npos) << why;
+  EXPECT_FALSE(BlockTreeLu::Analyze(ok, {{0}, {1}}, {-1, 0}, 48, &why));
+  EXPECT_NE(why.find("unknown 2 is in no node"), std::string::npos) << why;
+  EXPECT_FALSE(BlockTreeLu::Analyze(ok, nodes, {1, 2, 0}, 48, &why));
+  EXPECT_NE(why.find("cycle"), std::string::npos) << why;
+  EXPECT_FALSE(BlockTreeLu::Analyze(ok, {{0, 1, 2}}, {-1}, 2, &why));
+  EXPECT_NE(why.find("3 unknowns (more than 2)"), std::string::npos) << why;
+  EXPECT_FALSE(BlockTreeLu::Analyze(CscPattern::FromEntries(2, 3, {{0, 0}}), nodes, parent, 48, &why));
+  EXPECT_NE(why.find("not square"), std::string::npos) << why;
+  // [0 1; 1 0] in one node: partial pivoting within the node handles it; split over two
+  // nodes (child {1} eliminated first, its block 0) it is a zero pivot.
+  const CscPattern swap = CscPattern::FromEntries(2, 2, {{0, 1}, {1, 0}});
+  const double v[] = {1.0, 1.0};
+  auto one = BlockTreeLu::Analyze(swap, {{0, 1}}, {-1}, 48, &why);
+  ASSERT_TRUE(one) << why;
+  EXPECT_TRUE(one->Factor(v, &why)) << why;
+  auto two = BlockTreeLu::Analyze(swap, {{0}, {1}}, {-1, 0}, 48, &why);
+  ASSERT_TRUE(two) << why;
+  EXPECT_FALSE(two->Factor(v, &why));
+  EXPECT_NE(why.find("zero pivot"), std::string::npos) << why;
+  EXPECT_EQ(two->rcond(), 0);
+}
+
+// A chain of n rods (tests/support/ball_chain.h) with a spring-damper between the middles
+// of each pair of neighbours when `springs`: forces that couple two bodies directly.
+std::string ChainYaml(int n, bool springs) {
+  std::string y = mbdae::testing::BallChainYaml(n, 0.05);
+  if (!springs) return y;
+  const size_t at = y.find("simulation:");
+  std::string f = "forces:\n";
+  for (int k = 2; k <= n; ++k)
+    f += "  - {name: s" + std::to_string(k) + ", type: spring_damper, i: rod" + std::to_string(k) +
+         ".cm, j: rod" + std::to_string(k - 1) +
+         ".cm, stiffness: 200, damping: 0.5, free_length: 0.1}\n";
+  return y.substr(0, at) + f + y.substr(at);
+}
+
+struct Consistent {
+  mbs::Model model;
+  std::unique_ptr<mbs::MultibodySystem> system;
+  State x;
+  explicit Consistent(const std::string& yaml)
+      : model(mbs::LoadModelFromString(yaml, "test.yaml")),
+        system(std::make_unique<mbs::MultibodySystem>(model)) {
+    x.Resize(system->num_coordinates(), system->num_constraints());
+    system->InitialState(x.q, x.v);
+    const ConsistencyReport rep = MakeConsistent(*system, x);
+    EXPECT_TRUE(rep.ok) << rep.message;
+    EXPECT_TRUE(rep.redundant.empty());
+  }
+};
+
+TEST(BlockTreeLu, MatchesKluOnHhtNewtonMatrices) {
+  for (bool springs : {false, true}) {
+    Consistent c(ChainYaml(40, springs));
+    MechanicalSystem& sys = *c.system;
+    HhtOptions opt;
+    HhtNewtonMatrix newton(sys, opt);
+    // A bent, moving chain off the constraints (the matrix exists anywhere).
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<double> u(-0.05, 0.05);
+    std::vector<double> q = c.x.q, v = c.x.v, a = c.x.a, lam = c.x.lambda;
+    for (double& x : q) x += u(gen);
+    for (double& x : v) x += 20 * u(gen);
+    for (double& x : a) x += 100 * u(gen);
+    for (double& x : lam) x += 100 * u(gen);
+    std::vector<double> values(newton.pattern().nnz());
+    ASSERT_EQ(newton.Assemble(0.1, 1e-3, q.data(), v.data(), a.data(), lam.data(), values.data()), 0);
+    std::string why;
+    auto tree = BlockTreeLu::ForMechanicalSystem(newton.pattern(), sys.pattern(Matrix::kMass),
+                                                 sys.pattern(Matrix::kConstraintDq), 48, &why);
+    ASSERT_TRUE(tree) << why;
+    EXPECT_EQ(tree->num_nodes(), 40);
+    EXPECT_EQ(tree->largest_node(), 11);  // 7 coordinates, the normalisation, 3 joint rows
+    ASSERT_TRUE(tree->Factor(values.data(), &why)) << why;
+    KluSolver klu(newton.pattern());
+    ASSERT_TRUE(klu.Factor(values.data(), &why)) << why;
+    const int n = newton.pattern().rows;
+    std::vector<double> b(n), x(n), ref(n);
+    for (int i = 0; i < n; ++i) b[i] = std::cos(1.0 + 0.7 * i);
+    x = b;
+    ref = b;
+    tree->Solve(x.data());
+    klu.Solve(ref.data());
+    const double d = RelativeDifference(x, ref);
+    std::printf("Newton matrix of 40 rods%s: tree against KLU %.1e, pivot ratio %.1e\n",
+                springs ? " with springs" : "", d, tree->rcond());
+    EXPECT_LT(d, 1e-11);
+  }
+}
+
+// The parallelogram four-bar of tests/app/models/fourbar.yaml with its two ground pivots
+// on a body `base` welded to the ground: the loop base-crank-coupler-rocker is then one of
+// bodies (the forest of dae/tree_kkt.h sees it), not one through the ground.
+std::string FloatingBaseFourBar() {
+  return R"(format: 1
+name: four-bar on a welded base
+gravity: [0, -9.81, 0]
+parameters: {c: 0.5, s: 0.8660254037844386}
+ground:
+  markers:
+    C: {position: [1, 0, 0]}
+bodies:
+  - {name: base, mass: 5, inertia: [0.1, 0.1, 0.1], position: [1, 0, 0],
+     markers: {O: {position: [-1, 0, 0]}, P: {position: [1, 0, 0]}, C: {position: [0, 0, 0]}}}
+  - {name: crank, mass: 1, inertia: [0.01, 0.08, 0.08], position: ["c/2", "-s/2", 0],
+     markers: {A: {position: ["-c/2", "s/2", 0]}, B: {position: ["c/2", "-s/2", 0]}}}
+  - {name: coupler, mass: 2, inertia: [0.01, 0.7, 0.7], position: ["1 + c", "-s", 0],
+     markers: {L: {position: [-1, 0, 0]}, R: {position: [1, 0, 0]}}}
+  - {name: rocker, mass: 1, inertia: [0.01, 0.08, 0.08], position: ["2 + c/2", "-s/2", 0],
+     markers: {A: {position: ["-c/2", "s/2", 0]}, B: {position: ["c/2", "-s/2", 0]}}}
+joints:
+  - {name: weld, type: fixed, i: base.C, j: ground.C}
+  - {name: j_crank, type: revolute, i: crank.A, j: base.O}
+  - {name: j_left, type: revolute, i: crank.B, j: coupler.L}
+  - {name: j_right, type: revolute, i: coupler.R, j: rocker.B}
+  - {name: j_rocker, type: revolute, i: rocker.A, j: base.P}
+simulation: {t_end: 0.5, output_step: 0.05}
+)";
+}
+
+TEST(BlockTreeLu, RefusesLoopsAndForcesBetweenBodiesWithoutAJoint) {
+  // A four-bar on a welded base: the body-joint graph has a loop.
+  {
+    const mbs::Model model = mbs::LoadModelFromString(FloatingBaseFourBar(), "fourbar.yaml");
+    mbs::MultibodySystem sys(model);
+    HhtNewtonMatrix newton(sys, HhtOptions());
+    std::string why;
+    EXPECT_FALSE(BlockTreeLu::ForMechanicalSystem(newton.pattern(), sys.pattern(Matrix::kMass),
+                                                  sys.pattern(Matrix::kConstraintDq), 48, &why));
+    EXPECT_NE(why.find("closed loop"), std::string::npos) << why;
+  }
+  // A spring from the first rod to the third: no joint joins them.
+  {
+    std::string y = mbdae::testing::BallChainYaml(3, 0.05);
+    const size_t at = y.find("simulation:");
+    y = y.substr(0, at) +
+        "forces:\n  - {name: s, type: spring_damper, i: rod1.cm, j: rod3.cm, stiffness: 10, damping: 0, free_length: 0.2}\n" +
+        y.substr(at);
+    const mbs::Model model = mbs::LoadModelFromString(y, "test.yaml");
+    mbs::MultibodySystem sys(model);
+    HhtNewtonMatrix newton(sys, HhtOptions());
+    std::string why;
+    EXPECT_FALSE(BlockTreeLu::ForMechanicalSystem(newton.pattern(), sys.pattern(Matrix::kMass),
+                                                  sys.pattern(Matrix::kConstraintDq), 48, &why));
+    EXPECT_NE(why.find("which are not parent and child"), std::string::npos) << why;
+  }
+}
+
+// HHT with the tree against HHT with KLU: the same number of steps, iterations and
+// factorisations, the states equal to round-off; and the four-bar (a loop) on KLU.
+TEST(BlockTreeLu, HhtWithTheTreeTakesTheSameStepsAsWithKlu) {
+  for (bool springs : {false, true}) {
+    Consistent c(ChainYaml(30, springs));
+    HhtOptions klu_opt, tree_opt;
+    klu_opt.linear_solver = HhtOptions::LinearSolver::kKlu;
+    tree_opt.linear_solver = HhtOptions::LinearSolver::kTree;
+    auto klu = MakeHhtIntegrator(*c.system, klu_opt);
+    auto tree = MakeHhtIntegrator(*c.system, tree_opt);
+    klu->Initialize(c.x);
+    tree->Initialize(c.x);
+    ASSERT_TRUE(klu->AdvanceTo(0.2)) << klu->summary().message;
+    ASSERT_TRUE(tree->AdvanceTo(0.2)) << tree->summary().message;
+    const Summary& sk = klu->summary();
+    const Summary& st = tree->summary();
+    EXPECT_EQ(sk.linear_solver, "klu");
+    EXPECT_EQ(st.linear_solver, "tree");
+    EXPECT_EQ(st.klu_fallbacks, 0);
+    EXPECT_EQ(st.steps_accepted, sk.steps_accepted);
+    EXPECT_NEAR(st.newton_iterations, sk.newton_iterations, 0.01 * sk.newton_iterations);
+    const double dq = RelativeDifference(tree->state().q, klu->state().q);
+    const double dv = RelativeDifference(tree->state().v, klu->state().v);
+    std::printf("HHT, 30 rods%s, 0.2 s: %ld steps, Newton %ld (KLU) and %ld (tree); q differs by %.1e, v by %.1e\n",
+                springs ? " with springs" : "", sk.steps_accepted, sk.newton_iterations,
+                st.newton_iterations, dq, dv);
+    EXPECT_LT(dq, 1e-10);
+    EXPECT_LT(dv, 1e-8);
+  }
+  {
+    const mbs::Model model = mbs::LoadModel(std::string(MBDAE_TEST_MODELS) + "/pendulum.yaml");
+    mbs::MultibodySystem sys(model);
+    State x;
+    x.Resize(sys.num_coordinates(), sys.num_constraints());
+    sys.InitialState(x.q, x.v);
+    ASSERT_TRUE(MakeConsistent(sys, x).ok);
+    HhtOptions opt;
+    opt.linear_solver = HhtOptions::LinearSolver::kTree;
+    auto integ = MakeHhtIntegrator(sys, opt);
+    integ->Initialize(x);
+    ASSERT_TRUE(integ->AdvanceTo(0.1)) << integ->summary().message;
+    EXPECT_EQ(integ->summary().linear_solver, "tree");
+  }
+}
+
+TEST(BlockTreeLu, HhtOnALoopUsesKluAndSaysWhy) {
+  const mbs::Model model = mbs::LoadModelFromString(FloatingBaseFourBar(), "fourbar.yaml");
+  mbs::MultibodySystem sys(model);
+  State x;
+  x.Resize(sys.num_coordinates(), sys.num_constraints());
+  sys.InitialState(x.q, x.v);
+  const ConsistencyReport rep = MakeConsistent(sys, x);
+  ASSERT_TRUE(rep.ok) << rep.message;
+  EXPECT_EQ(rep.redundant.size(), 3u);  // the out-of-plane equations of the loop
+  std::vector<int> kept;
+  for (int r = 0; r < sys.num_constraints(); ++r)
+    if (std::find(rep.redundant.begin(), rep.redundant.end(), r) == rep.redundant.end())
+      kept.push_back(r);
+  auto reduced = KeepConstraints(sys, kept);
+  State xr = x;
+  xr.lambda.assign(kept.size(), 0.0);
+  for (size_t k = 0; k < kept.size(); ++k) xr.lambda[k] = x.lambda[kept[k]];
+  HhtOptions klu_opt, tree_opt;
+  klu_opt.linear_solver = HhtOptions::LinearSolver::kKlu;
+  tree_opt.linear_solver = HhtOptions::LinearSolver::kTree;
+  auto klu = MakeHhtIntegrator(*reduced, klu_opt);
+  auto tree = MakeHhtIntegrator(*reduced, tree_opt);
+  klu->Initialize(xr);
+  tree->Initialize(xr);
+  ASSERT_TRUE(klu->AdvanceTo(0.05)) << klu->summary().message;
+  ASSERT_TRUE(tree->AdvanceTo(0.05)) << tree->summary().message;
+  EXPECT_EQ(tree->summary().linear_solver.rfind("klu (no tree: ", 0), 0u)
+      << tree->summary().linear_solver;
+  EXPECT_NE(tree->summary().linear_solver.find("closed loop"), std::string::npos);
+  // KLU either way: bitwise the same run.
+  EXPECT_EQ(tree->state().q, klu->state().q);
+  EXPECT_EQ(tree->state().lambda, klu->state().lambda);
+}
+
+}  // namespace
+}  // namespace mbdae::dae
