@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <utility>
+#include <vector>
 
 #include "dae/dense_lu.h"
 #include "dae/tree_kkt.h"
@@ -13,63 +14,65 @@ namespace mbdae::dae {
 
 namespace {
 
-// Kernels of one node with m unknowns and a parent of p unknowns (MT > 0 and PT >= 0 fix
-// them at compile time; MT = 0, PT = -1 take m_rt, p_rt). Row-major blocks:
-// d = A_ii (m x m), c = A_ip (m x p), r = A_pi (p x m), w = W_i (m x p).
+// Kernels of one node with m unknowns coupled to k unknowns of its parent (its
+// interface: the parent's unknowns that A_ip or A_pi touch, idx[0..k) their places in the
+// parent, whose block has pdim rows; MT > 0 and KT >= 0 fix m and k at compile time,
+// MT = 0, KT = -1 take m_rt, k_rt). Row-major blocks: d = A_ii (m x m), c = A_ip on the
+// interface (m x k), r = A_pi on the interface (k x m), w = W_i (m x k).
 
-// d = L U in place, w = d^-1 c, dp -= r w.
-template <int MT, int PT>
+// d = L U in place, w = d^-1 c, dp -= r w on the interface.
+template <int MT, int KT>
 struct Eliminate {
-  static bool Run(int m_rt, int p_rt, double* d, int* piv, const double* c, const double* r,
-                  double* w, double* dp, double* umin, double* umax) {
+  static bool Run(int m_rt, int k_rt, double* d, int* piv, const double* c, const double* r,
+                  double* w, const int* idx, int pdim, double* dp, double* umin, double* umax) {
     const int m = MT > 0 ? MT : m_rt;
-    const int p = PT >= 0 ? PT : p_rt;
+    const int k = KT >= 0 ? KT : k_rt;
     if (!DenseLu<MT>(d, m, piv, umin, umax)) return false;
-    if (p == 0) return true;
-    std::copy(c, c + m * p, w);
-    DenseLuSolve<MT, PT>(d, m, piv, w, p);
-    for (int a = 0; a < p; ++a) {
+    if (k == 0) return true;
+    std::copy(c, c + m * k, w);
+    DenseLuSolve<MT, KT>(d, m, piv, w, k);
+    for (int a = 0; a < k; ++a) {
       const double* ra = r + a * m;
-      double* dpa = dp + a * p;
-      for (int k = 0; k < m; ++k) {
-        const double rak = ra[k];
-        if (rak == 0) continue;
-        const double* wk = w + k * p;
-        for (int b = 0; b < p; ++b) dpa[b] -= rak * wk[b];
+      double* dpa = dp + idx[a] * pdim;
+      for (int b = 0; b < k; ++b) {
+        double s = 0;
+        for (int l = 0; l < m; ++l) s += ra[l] * w[l * k + b];
+        dpa[idx[b]] -= s;
       }
     }
     return true;
   }
 };
 
-// Upwards: x_i = d^-1 x_i, x_p -= r x_i.
-template <int MT, int PT>
+// Upwards: x_i = d^-1 x_i, x_p -= r x_i on the interface.
+template <int MT, int KT>
 struct Forward {
-  static void Run(int m_rt, int p_rt, const double* lu, const int* piv, const double* r,
-                  double* xi, double* xp) {
+  static void Run(int m_rt, int k_rt, const double* lu, const int* piv, const double* r,
+                  const int* idx, double* xi, double* xp) {
     const int m = MT > 0 ? MT : m_rt;
-    const int p = PT >= 0 ? PT : p_rt;
+    const int k = KT >= 0 ? KT : k_rt;
     DenseLuSolve<MT, 1>(lu, m, piv, xi, 1);
-    for (int a = 0; a < p; ++a) {
+    for (int a = 0; a < k; ++a) {
       const double* ra = r + a * m;
       double s = 0;
-      for (int k = 0; k < m; ++k) s += ra[k] * xi[k];
-      xp[a] -= s;
+      for (int l = 0; l < m; ++l) s += ra[l] * xi[l];
+      xp[idx[a]] -= s;
     }
   }
 };
 
-// Downwards: x_i -= w x_p.
-template <int MT, int PT>
+// Downwards: x_i -= w x_p on the interface.
+template <int MT, int KT>
 struct Backward {
-  static void Run(int m_rt, int p_rt, const double* w, const double* xp, double* xi) {
+  static void Run(int m_rt, int k_rt, const double* w, const int* idx, const double* xp,
+                  double* xi) {
     const int m = MT > 0 ? MT : m_rt;
-    const int p = PT >= 0 ? PT : p_rt;
-    for (int k = 0; k < m; ++k) {
-      const double* wk = w + k * p;
+    const int k = KT >= 0 ? KT : k_rt;
+    for (int l = 0; l < m; ++l) {
+      const double* wl = w + l * k;
       double s = 0;
-      for (int a = 0; a < p; ++a) s += wk[a] * xp[a];
-      xi[k] -= s;
+      for (int a = 0; a < k; ++a) s += wl[a] * xp[idx[a]];
+      xi[l] -= s;
     }
   }
 };
@@ -100,18 +103,21 @@ struct BlockTreeLu::Impl {
     int dim = 0;
     int parent = -1;  // position of the parent in the elimination order; -1: a root
     int pdim = 0;     // the parent's dim
+    int k = 0;        // the interface: k unknowns of the parent, their places at iface[idx]
+    int idx = 0;
     int x = 0;        // first entry of the node's unknowns in the node-ordered vector
-    int d = 0;        // D_i (dim x dim) in values, then A_ip (dim x pdim), A_pi (pdim x dim)
-    int w = 0;        // W_i (dim x pdim) in w
+    int d = 0;        // D_i (dim x dim) in values, then A_ip (dim x k), A_pi (k x dim)
+    int w = 0;        // W_i (dim x k) in w
     EliminateFn eliminate = &Eliminate<0, -1>::Run;
     ForwardFn forward = &Forward<0, -1>::Run;
     BackwardFn backward = &Backward<0, -1>::Run;
     int c() const { return d + dim * dim; }
-    int r() const { return d + dim * dim + dim * pdim; }
+    int r() const { return d + dim * dim + dim * k; }
   };
   int n = 0;
   std::vector<Node> nodes;  // in elimination order (children before parents)
   std::vector<int> perm;    // node-ordered index -> unknown of A
+  std::vector<int> iface;   // per node: its interface's places in the parent's block
   std::vector<int> to;      // entry k of A's pattern -> index into values
   std::vector<double> values, w;
   std::vector<int> piv;  // per node: dim entries at nodes[i].x
@@ -187,7 +193,7 @@ std::unique_ptr<BlockTreeLu> BlockTreeLu::Analyze(const CscPattern& a,
   for (int k = 0; k < nn; ++k) position[bfs[nn - 1 - k]] = k;
   m.nodes.resize(nn);
   m.perm.reserve(n);
-  int x = 0, nvalues = 0, nw = 0;
+  int x = 0;
   for (int k = 0; k < nn; ++k) {
     const int i = bfs[nn - 1 - k];
     Impl::Node& node = m.nodes[k];
@@ -197,33 +203,65 @@ std::unique_ptr<BlockTreeLu> BlockTreeLu::Analyze(const CscPattern& a,
     node.x = x;
     x += node.dim;
     for (int u : nodes[i]) m.perm.push_back(u);
+  }
+  // Each entry's block: 0 within a node, 1 A_ip of the row's node, 2 A_pi of the column's
+  // node; the interface of each node: the parent's unknowns its A_ip and A_pi touch.
+  std::vector<char> kind(a.nnz());
+  std::vector<int> pdim_start(nn + 1, 0);
+  for (int k = 0; k < nn; ++k) pdim_start[k + 1] = pdim_start[k] + m.nodes[k].pdim;
+  std::vector<int> slot(pdim_start[nn], -1);  // per node and parent unknown: interface place
+  for (int c = 0; c < n; ++c)
+    for (int k = a.col_start[c]; k < a.col_start[c + 1]; ++k) {
+      const int r = a.row_index[k];
+      const int nr = position[node_of[r]], nc = position[node_of[c]];
+      if (nr == nc) {
+        kind[k] = 0;
+      } else if (m.nodes[nr].parent == nc) {
+        kind[k] = 1;
+        slot[pdim_start[nr] + local[c]] = 0;
+      } else if (m.nodes[nc].parent == nr) {
+        kind[k] = 2;
+        slot[pdim_start[nc] + local[r]] = 0;
+      } else {
+        return refuse("entry (" + std::to_string(r) + ", " + std::to_string(c) +
+                      ") couples nodes " + std::to_string(node_of[r]) + " and " +
+                      std::to_string(node_of[c]) + ", which are not parent and child");
+      }
+    }
+  int nvalues = 0, nw = 0;
+  for (int k = 0; k < nn; ++k) {
+    Impl::Node& node = m.nodes[k];
+    node.idx = static_cast<int>(m.iface.size());
+    for (int l = 0; l < node.pdim; ++l)
+      if (slot[pdim_start[k] + l] == 0) {
+        slot[pdim_start[k] + l] = node.k++;
+        m.iface.push_back(l);
+      }
     node.d = nvalues;
-    nvalues += node.dim * node.dim + 2 * node.dim * node.pdim;
+    nvalues += node.dim * node.dim + 2 * node.dim * node.k;
     node.w = nw;
-    nw += node.dim * node.pdim;
-    if (node.dim <= kFixed && node.pdim <= kFixed) {
-      node.eliminate = kEliminate[node.dim - 1][node.pdim];
-      node.forward = kForward[node.dim - 1][node.pdim];
-      node.backward = kBackward[node.dim - 1][node.pdim];
+    nw += node.dim * node.k;
+    if (node.dim <= kFixed && node.k <= kFixed) {
+      node.eliminate = kEliminate[node.dim - 1][node.k];
+      node.forward = kForward[node.dim - 1][node.k];
+      node.backward = kBackward[node.dim - 1][node.k];
     }
   }
   m.to.resize(a.nnz());
   for (int c = 0; c < n; ++c)
     for (int k = a.col_start[c]; k < a.col_start[c + 1]; ++k) {
       const int r = a.row_index[k];
-      const int nr = position[node_of[r]], nc = position[node_of[c]];
-      const Impl::Node& row_node = m.nodes[nr];
-      const Impl::Node& col_node = m.nodes[nc];
-      if (nr == nc)
+      const Impl::Node& row_node = m.nodes[position[node_of[r]]];
+      const Impl::Node& col_node = m.nodes[position[node_of[c]]];
+      if (kind[k] == 0) {
         m.to[k] = row_node.d + local[r] * row_node.dim + local[c];
-      else if (row_node.parent == nc)  // A_ip of the row's node
-        m.to[k] = row_node.c() + local[r] * row_node.pdim + local[c];
-      else if (col_node.parent == nr)  // A_pi of the column's node
-        m.to[k] = col_node.r() + local[r] * col_node.dim + local[c];
-      else
-        return refuse("entry (" + std::to_string(r) + ", " + std::to_string(c) +
-                      ") couples nodes " + std::to_string(node_of[r]) + " and " +
-                      std::to_string(node_of[c]) + ", which are not parent and child");
+      } else if (kind[k] == 1) {
+        const int s = slot[pdim_start[position[node_of[r]]] + local[c]];
+        m.to[k] = row_node.c() + local[r] * row_node.k + s;
+      } else {
+        const int s = slot[pdim_start[position[node_of[c]]] + local[r]];
+        m.to[k] = col_node.r() + s * col_node.dim + local[c];
+      }
     }
   m.values.assign(nvalues, 0.0);
   m.w.assign(nw, 0.0);
@@ -274,8 +312,9 @@ bool BlockTreeLu::Factor(const double* values, std::string* error) {
   for (size_t k = 0; k < m.nodes.size(); ++k) {
     const Impl::Node& node = m.nodes[k];
     double* dp = node.parent < 0 ? nullptr : v + m.nodes[node.parent].d;
-    if (!node.eliminate(node.dim, node.pdim, v + node.d, m.piv.data() + node.x, v + node.c(),
-                        v + node.r(), m.w.data() + node.w, dp, &umin, &umax)) {
+    if (!node.eliminate(node.dim, node.k, v + node.d, m.piv.data() + node.x, v + node.c(),
+                        v + node.r(), m.w.data() + node.w, m.iface.data() + node.idx, node.pdim,
+                        dp, &umin, &umax)) {
       if (error)
         *error = "block tree elimination: zero pivot in the block of node " +
                  std::to_string(k) + " (" + std::to_string(node.dim) + " unknowns)";
@@ -293,16 +332,37 @@ void BlockTreeLu::Solve(double* b) const {
   const double* v = m.values.data();
   for (int j = 0; j < m.n; ++j) x[j] = b[m.perm[j]];
   for (const Impl::Node& node : m.nodes)
-    node.forward(node.dim, node.pdim, v + node.d, m.piv.data() + node.x, v + node.r(),
-                 x + node.x, node.parent < 0 ? nullptr : x + m.nodes[node.parent].x);
+    node.forward(node.dim, node.k, v + node.d, m.piv.data() + node.x, v + node.r(),
+                 m.iface.data() + node.idx, x + node.x,
+                 node.parent < 0 ? nullptr : x + m.nodes[node.parent].x);
   for (auto it = m.nodes.rbegin(); it != m.nodes.rend(); ++it)
     if (it->parent >= 0)
-      it->backward(it->dim, it->pdim, m.w.data() + it->w, x + m.nodes[it->parent].x, x + it->x);
+      it->backward(it->dim, it->k, m.w.data() + it->w, m.iface.data() + it->idx,
+                   x + m.nodes[it->parent].x, x + it->x);
   for (int j = 0; j < m.n; ++j) b[m.perm[j]] = x[j];
 }
 
 double BlockTreeLu::rcond() const { return impl_->rcond; }
 int BlockTreeLu::num_nodes() const { return static_cast<int>(impl_->nodes.size()); }
 int BlockTreeLu::largest_node() const { return impl_->largest; }
+
+double BlockTreeLu::factor_flops() const {
+  double f = 0;
+  for (const Impl::Node& node : impl_->nodes) {
+    const double m = node.dim, k = node.k;
+    for (int j = 0; j < node.dim; ++j) {
+      const double r = node.dim - j - 1;
+      f += r + 2 * r * r;
+    }
+    f += 2 * m * m * k + 2 * m * k * k;
+  }
+  return f;
+}
+
+double BlockTreeLu::solve_flops() const {
+  double f = 0;
+  for (const Impl::Node& node : impl_->nodes) f += 2.0 * node.dim * node.dim + 4.0 * node.dim * node.k;
+  return f;
+}
 
 }  // namespace mbdae::dae

@@ -7,7 +7,9 @@
 // PATH: the chain's model file (bench/scenes/ball_chain.py N). For each N:
 //   BM_HhtStep        one fixed step h = 1e-3 s of dae::MakeHhtIntegrator with the
 //                     project's default HhtOptions (alpha = -0.1, equilibrium form,
-//                     modified for Euler parameters), AdvanceTo(t + h); every repetition
+//                     modified for Euler parameters), AdvanceTo(t + h), at Newton
+//                     thresholds 10^-k and with KLU (N/k/0) or the block tree
+//                     elimination (N/k/1) as the linear solver; every repetition
 //                     times the same 200 steps (t = 0.005 .. 0.205 s, after 5 untimed
 //                     steps from the consistent initial state; restarted untimed)
 //   BM_KluRefactorSolve  bare KLU: klu_refactor + klu_solve (one right side) of the HHT
@@ -19,6 +21,10 @@
 //   BM_KluSolve       klu_solve alone
 //   BM_KluSolverFactorSolve  what the integrator calls: dae::KluSolver::Factor (the
 //                     refactorisation plus its pivot-growth and condition checks) + Solve
+//   BM_TreeLu         the same matrix by the block tree elimination (dae/block_tree_lu.h,
+//                     HhtOptions::LinearSolver::kTree): N/1 Factor + Solve, N/2 Factor,
+//                     N/3 Solve; its flops (BlockTreeLu::factor_flops, solve_flops) and
+//                     its solution's difference from KLU's
 //   BM_DenseGemm      C = A B of two dense 256 x 256 matrices (Eigen, as this build
 //                     compiles it): 2 * 256^3 flops, the rate dense code reaches here
 // Counters: flops of the factorisation (klu_flops: the multiply-subtract pairs of the LU
@@ -336,6 +342,12 @@ void BM_TreeLu(benchmark::State& state) {
   }
   state.counters["diff_vs_klu"] = diff / scale;
   state.counters["rcond"] = tree->rcond();
+  state.counters["factor_flops"] = tree->factor_flops();
+  state.counters["solve_flops"] = tree->solve_flops();
+  const double flops =
+      (what != 3 ? tree->factor_flops() : 0) + (what != 2 ? tree->solve_flops() : 0);
+  state.counters["GFLOPs"] =
+      benchmark::Counter(flops * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
 }
 
 void BM_DenseGemm(benchmark::State& state) {

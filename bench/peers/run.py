@@ -623,17 +623,21 @@ def step_flops_section(results):
                 return b
         return None
 
-    def step(n, k):
-        # "BM_HhtStep/N/k/iterations:K": Newton threshold 10^-k; older files have no k
-        # (the default threshold, k = 12).
+    def step(n, k, solver=0):
+        # "BM_HhtStep/N/k/s/iterations:K": Newton threshold 10^-k, linear solver s (0 KLU,
+        # 1 the block tree); older files have no s (KLU) or no k (the default, k = 12).
         for key, b in med.items():
             parts = key.split("/")
             if parts[0] != "BM_HhtStep" or parts[1] != str(n):
                 continue
             kk = int(parts[2]) if len(parts) > 2 and parts[2].isdigit() else 12
-            if kk == k:
+            ss = int(parts[3]) if len(parts) > 3 and parts[3].isdigit() else 0
+            if kk == k and ss == solver:
                 return b
         return None
+
+    def tree(n, what):
+        return med.get("BM_TreeLu/%d/%d" % (n, what))
     for n in (100, 1000):
         st, rs = step(n, 12), get("BM_KluRefactorSolve", n)
         rf, ks = get("BM_KluRefactor", n), get("BM_KluSolverFactorSolve", n)
@@ -660,6 +664,34 @@ def step_flops_section(results):
                 "`bench/results/newton_tolerance.md`):", "",
                 "| N | threshold | HHT step [us] | Newton it. / step | factorisations / step | "
                 "ratio step / (refactor + solve) |", "| ---: | ---: | ---: | ---: | ---: | ---: |"] + loose
+    rows = []
+    for n in (100, 1000):
+        rs = get("BM_KluRefactorSolve", n)
+        t1, t2, t3 = tree(n, 1), tree(n, 2), tree(n, 3)
+        if not (rs and t1 and t2 and t3):
+            continue
+        for k in (12, 10, 8, 6):
+            sk, st = step(n, k, 0), step(n, k, 1)
+            if not (sk and st):
+                continue
+            rows.append("| %d | 1e-%d | %.0f | %.0f | %.2f | %.0f | %.0f | %.0f | %.2f | %.2f | %.2f | %.2f | %.1e |" % (
+                n, k, sk["cpu_time"], st["cpu_time"], st["cpu_time"] / sk["cpu_time"],
+                t1["cpu_time"], t2["cpu_time"], t3["cpu_time"], rs["cpu_time"] / t1["cpu_time"],
+                t2["GFLOPs"], st["cpu_time"] / t1["cpu_time"], st["cpu_time"] / rs["cpu_time"],
+                t1["diff_vs_klu"]))
+    if rows:
+        out += ["", "The block tree elimination (`hht: {linear_solver: tree}`, "
+                "`dae/block_tree_lu.h`) of the same Newton matrix, and the HHT step with it "
+                "(Newton iterations and factorisations per step as with KLU, the states equal "
+                "to round-off). Its flops are counted from the blocks "
+                "(`BlockTreeLu::factor_flops`: per node of m unknowns and an interface of k "
+                "to its parent, the LU of the m x m block, 2 m^2 k for W and 2 m k^2 for the "
+                "parent's update):", "",
+                "| N | threshold | step, KLU [us] | step, tree [us] | tree / KLU | tree refactor + "
+                "solve [us] | tree refactor [us] | tree solve [us] | KLU (refactor + solve) / "
+                "tree's | tree refactor GFLOP/s | step, tree / tree refactor + solve | "
+                "step, tree / KLU refactor + solve | solution vs KLU (rel.) |",
+                "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"] + rows
     g = get("BM_DenseGemm", 256)
     if g:
         rate = g["GFLOPs"]

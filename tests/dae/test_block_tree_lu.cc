@@ -35,8 +35,9 @@ double RelativeDifference(const std::vector<double>& x, const std::vector<double
 }
 
 // A random forest of `nn` nodes with sizes in 1..max_size, its unknowns shuffled, and a
-// nonsymmetric matrix on it: dense diagonal blocks made diagonally dominant, dense blocks
-// between each node and its parent with some entries left out of the pattern.
+// nonsymmetric matrix on it: dense diagonal blocks made diagonally dominant, blocks
+// between each node and about half of its parent's unknowns with some entries left out of
+// the pattern.
 struct RandomForest {
   std::vector<std::vector<int>> nodes;
   std::vector<int> parent;
@@ -74,11 +75,14 @@ RandomForest MakeRandomForest(int nn, int max_size, unsigned seed) {
     for (int r : f.nodes[i])
       for (int c : f.nodes[i]) put(r, c, r == c ? 0.0 : u(gen));
     if (f.parent[i] < 0) continue;
-    for (int r : f.nodes[i])
-      for (int c : f.nodes[f.parent[i]]) {
+    // The coupling touches about half of the parent's unknowns (the node's interface).
+    for (int c : f.nodes[f.parent[i]]) {
+      if (coin(gen) < 0.5) continue;
+      for (int r : f.nodes[i]) {
         if (coin(gen) < 0.7) put(r, c, u(gen));
         if (coin(gen) < 0.7) put(c, r, u(gen));
       }
+    }
   }
   for (int r = 0; r < n; ++r) f.dense(r, r) = 2.0 + f.dense.row(r).cwiseAbs().sum();
   f.pattern = CscPattern::FromEntries(n, n, entries);
@@ -145,6 +149,9 @@ TEST(BlockTreeLu, RefusesWhatIsNoForestAndReportsZeroPivots) {
   auto one = BlockTreeLu::Analyze(swap, {{0, 1}}, {-1}, 48, &why);
   ASSERT_TRUE(one) << why;
   EXPECT_TRUE(one->Factor(v, &why)) << why;
+  // One 2 x 2 node: the LU's one division and multiply-add (1 + 2), the solve 2 m^2.
+  EXPECT_EQ(one->factor_flops(), 3.0);
+  EXPECT_EQ(one->solve_flops(), 8.0);
   auto two = BlockTreeLu::Analyze(swap, {{0}, {1}}, {-1, 0}, 48, &why);
   ASSERT_TRUE(two) << why;
   EXPECT_FALSE(two->Factor(v, &why));
