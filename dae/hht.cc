@@ -48,6 +48,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <limits>
 #include <stdexcept>
 #include <utility>
@@ -89,49 +90,51 @@ bool HhtOptions::IsValid(std::string* error) const {
   return true;
 }
 
-const char* HhtFormName(HhtOptions::Form form) {
-  return form == HhtOptions::Form::kNegrut ? "negrut" : "equilibrium";
+namespace {
+
+// The names of an option's values: the first pair's value is the fallback of NameOf.
+template <class E>
+using NameTable = std::initializer_list<std::pair<const char*, E>>;
+
+template <class E>
+const char* NameOf(E value, NameTable<E> table) {
+  for (const auto& entry : table)
+    if (entry.second == value) return entry.first;
+  return table.begin()->first;
 }
 
-const char* HhtStartName(HhtOptions::Start start) {
-  return start == HhtOptions::Start::kPerturbed ? "perturbed" : "consistent";
+template <class E>
+bool ParseName(const std::string& name, NameTable<E> table, E* value) {
+  for (const auto& entry : table)
+    if (name == entry.first) {
+      *value = entry.second;
+      return true;
+    }
+  return false;
 }
 
-bool ParseHhtStart(const std::string& name, HhtOptions::Start* start) {
-  if (name == "perturbed") {
-    *start = HhtOptions::Start::kPerturbed;
-  } else if (name == "consistent") {
-    *start = HhtOptions::Start::kConsistent;
-  } else {
-    return false;
-  }
-  return true;
-}
+constexpr NameTable<HhtOptions::Form> kFormNames = {
+    {"equilibrium", HhtOptions::Form::kEquilibrium}, {"negrut", HhtOptions::Form::kNegrut}};
+constexpr NameTable<HhtOptions::Start> kStartNames = {
+    {"consistent", HhtOptions::Start::kConsistent}, {"perturbed", HhtOptions::Start::kPerturbed}};
+constexpr NameTable<HhtOptions::LinearSolver> kLinearSolverNames = {
+    {"klu", HhtOptions::LinearSolver::kKlu}, {"tree", HhtOptions::LinearSolver::kTree}};
 
-const char* HhtLinearSolverName(HhtOptions::LinearSolver solver) {
-  return solver == HhtOptions::LinearSolver::kTree ? "tree" : "klu";
-}
+}  // namespace
 
-bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* solver) {
-  if (name == "klu") {
-    *solver = HhtOptions::LinearSolver::kKlu;
-  } else if (name == "tree") {
-    *solver = HhtOptions::LinearSolver::kTree;
-  } else {
-    return false;
-  }
-  return true;
-}
-
+const char* HhtFormName(HhtOptions::Form form) { return NameOf(form, kFormNames); }
 bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {
-  if (name == "equilibrium") {
-    *form = HhtOptions::Form::kEquilibrium;
-  } else if (name == "negrut") {
-    *form = HhtOptions::Form::kNegrut;
-  } else {
-    return false;
-  }
-  return true;
+  return ParseName(name, kFormNames, form);
+}
+const char* HhtStartName(HhtOptions::Start start) { return NameOf(start, kStartNames); }
+bool ParseHhtStart(const std::string& name, HhtOptions::Start* start) {
+  return ParseName(name, kStartNames, start);
+}
+const char* HhtLinearSolverName(HhtOptions::LinearSolver solver) {
+  return NameOf(solver, kLinearSolverNames);
+}
+bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* solver) {
+  return ParseName(name, kLinearSolverNames, solver);
 }
 
 HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options)

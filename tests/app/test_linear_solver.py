@@ -15,20 +15,14 @@ Python package.
 import os
 import sys
 
-import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "support"))
-from pendulum_app import run, run_ok  # noqa: E402
+from pendulum_app import assert_hht_key_error, pendulum_with_hht, run, run_ok, simulate  # noqa: E402
 
 MODELS = os.environ["MBDAE_APP_MODELS"]
 PENDULUM = os.path.join(MODELS, "pendulum.yaml")
 FOURBAR = os.path.join(MODELS, "fourbar.yaml")
-
-
-def simulate(tmp_path, model, name, extra=()):
-    run_ok(["simulate", model, "-o", name, "--quiet", *extra], tmp_path)
-    return h5py.File(tmp_path / name, "r")
 
 
 def test_tree_takes_the_same_steps_on_a_tree(tmp_path):
@@ -56,10 +50,7 @@ def test_a_loop_through_the_ground_falls_back_to_klu(tmp_path):
 
 
 def test_model_file_key_override_errors_and_convert(tmp_path):
-    text = open(PENDULUM).read()
-    old = "  hht: {alpha: -0.1, step: 1.0e-3}\n"
-    assert old in text
-    good = text.replace(old, "  hht: {alpha: -0.1, step: 1.0e-3, linear_solver: tree}\n")
+    good = pendulum_with_hht(PENDULUM, "linear_solver: tree")
     (tmp_path / "p.yaml").write_text(good)
     with simulate(tmp_path, "p.yaml", "p.h5") as f:
         assert f.attrs["hht_linear_solver"] == "tree"
@@ -72,12 +63,8 @@ def test_model_file_key_override_errors_and_convert(tmp_path):
     assert "linear_solver: tree}" in (tmp_path / "q.yaml").read_text()
     run_ok(["convert", PENDULUM, "-o", "r.yaml"], tmp_path)
     assert "linear_solver" not in (tmp_path / "r.yaml").read_text()
-    line = good[:good.index("  hht:")].count("\n") + 1
-    (tmp_path / "bad.yaml").write_text(good.replace("linear_solver: tree", "linear_solver: lu"))
-    p = run(["simulate", "bad.yaml", "-o", "bad.h5"], tmp_path)
-    assert p.returncode == 2, p.stderr
-    assert "bad.yaml:%d:" % line in p.stderr and "linear_solver" in p.stderr, p.stderr
-    assert not (tmp_path / "bad.h5").exists()
+    assert_hht_key_error(tmp_path, good.replace("linear_solver: tree", "linear_solver: lu"),
+                         "linear_solver")
     p = run(["simulate", PENDULUM, "-o", "bad.h5", "--linear-solver", "lu"], tmp_path)
     assert p.returncode == 2 and "--linear-solver" in p.stderr, p.stderr
     assert not (tmp_path / "bad.h5").exists()

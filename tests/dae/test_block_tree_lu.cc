@@ -2,7 +2,8 @@
 // nonsymmetric forests (fixed-size and generic kernels), against KLU on HHT's Newton matrix
 // of a chain of rods (with springs between neighbours, which couple bodies directly), its
 // refusals, and HHT with HhtOptions::LinearSolver::kTree against KLU (the same steps and
-// states to round-off; a loop falls back to KLU with the reason).
+// states to round-off; a loop falls back to KLU with the reason; a pendulum, the
+// single-body tree, is covered by tests/app/test_linear_solver.py).
 #include "dae/block_tree_lu.h"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -21,18 +24,12 @@
 #include "mbs/loader.h"
 #include "mbs/system.h"
 #include "tests/support/ball_chain.h"
+#include "tests/support/relative_difference.h"
 
 namespace mbdae::dae {
 namespace {
 
-double RelativeDifference(const std::vector<double>& x, const std::vector<double>& y) {
-  double d = 0, s = 0;
-  for (size_t i = 0; i < y.size(); ++i) {
-    d = std::max(d, std::abs(x[i] - y[i]));
-    s = std::max(s, std::abs(y[i]));
-  }
-  return s > 0 ? d / s : d;
-}
+using testing::RelativeDifference;
 
 // A random forest of `nn` nodes with sizes in 1..max_size, its unknowns shuffled, and a
 // nonsymmetric matrix on it: dense diagonal blocks made diagonally dominant, blocks
@@ -173,25 +170,67 @@ std::string ChainYaml(int n, bool springs) {
   return y.substr(0, at) + f + y.substr(at);
 }
 
+// A model made consistent, its independent constraints kept (all of them unless some are
+// redundant): `kept` and its state `x`, as driver::Assemble hands them to an integrator.
 struct Consistent {
   mbs::Model model;
   std::unique_ptr<mbs::MultibodySystem> system;
+  std::unique_ptr<MechanicalSystem> kept;
   State x;
+  size_t redundant = 0;
   explicit Consistent(const std::string& yaml)
       : model(mbs::LoadModelFromString(yaml, "test.yaml")),
         system(std::make_unique<mbs::MultibodySystem>(model)) {
-    x.Resize(system->num_coordinates(), system->num_constraints());
-    system->InitialState(x.q, x.v);
-    const ConsistencyReport rep = MakeConsistent(*system, x);
+    State full;
+    full.Resize(system->num_coordinates(), system->num_constraints());
+    system->InitialState(full.q, full.v);
+    const ConsistencyReport rep = MakeConsistent(*system, full);
     EXPECT_TRUE(rep.ok) << rep.message;
-    EXPECT_TRUE(rep.redundant.empty());
+    redundant = rep.redundant.size();
+    std::vector<int> rows;
+    for (int r = 0; r < system->num_constraints(); ++r)
+      if (std::find(rep.redundant.begin(), rep.redundant.end(), r) == rep.redundant.end())
+        rows.push_back(r);
+    kept = KeepConstraints(*system, rows);
+    x = full;
+    x.lambda.resize(rows.size());
+    for (size_t k = 0; k < rows.size(); ++k) x.lambda[k] = full.lambda[rows[k]];
   }
 };
+
+// HHT with KLU and with the tree on c's kept system from its consistent state to t_end.
+struct KluAndTree {
+  std::unique_ptr<Integrator> klu, tree;
+  KluAndTree(Consistent& c, double t_end) {
+    HhtOptions klu_opt, tree_opt;
+    klu_opt.linear_solver = HhtOptions::LinearSolver::kKlu;
+    tree_opt.linear_solver = HhtOptions::LinearSolver::kTree;
+    klu = MakeHhtIntegrator(*c.kept, klu_opt);
+    tree = MakeHhtIntegrator(*c.kept, tree_opt);
+    klu->Initialize(c.x);
+    tree->Initialize(c.x);
+    EXPECT_TRUE(klu->AdvanceTo(t_end)) << klu->summary().message;
+    EXPECT_TRUE(tree->AdvanceTo(t_end)) << tree->summary().message;
+  }
+};
+
+// Why ForMechanicalSystem refuses the HHT Newton matrix of this model (empty: it did not).
+std::string Refusal(const std::string& yaml) {
+  const mbs::Model model = mbs::LoadModelFromString(yaml, "test.yaml");
+  mbs::MultibodySystem sys(model);
+  HhtNewtonMatrix newton(sys, HhtOptions());
+  std::string why;
+  if (BlockTreeLu::ForMechanicalSystem(newton.pattern(), sys.pattern(Matrix::kMass),
+                                       sys.pattern(Matrix::kConstraintDq), 48, &why))
+    return "";
+  return why.empty() ? "(no reason)" : why;
+}
 
 TEST(BlockTreeLu, MatchesKluOnHhtNewtonMatrices) {
   for (bool springs : {false, true}) {
     Consistent c(ChainYaml(40, springs));
-    MechanicalSystem& sys = *c.system;
+    ASSERT_EQ(c.redundant, 0u);
+    MechanicalSystem& sys = *c.kept;
     HhtOptions opt;
     HhtNewtonMatrix newton(sys, opt);
     // A bent, moving chain off the constraints (the matrix exists anywhere).
@@ -259,30 +298,18 @@ simulation: {t_end: 0.5, output_step: 0.05}
 
 TEST(BlockTreeLu, RefusesLoopsAndForcesBetweenBodiesWithoutAJoint) {
   // A four-bar on a welded base: the body-joint graph has a loop.
-  {
-    const mbs::Model model = mbs::LoadModelFromString(FloatingBaseFourBar(), "fourbar.yaml");
-    mbs::MultibodySystem sys(model);
-    HhtNewtonMatrix newton(sys, HhtOptions());
-    std::string why;
-    EXPECT_FALSE(BlockTreeLu::ForMechanicalSystem(newton.pattern(), sys.pattern(Matrix::kMass),
-                                                  sys.pattern(Matrix::kConstraintDq), 48, &why));
-    EXPECT_NE(why.find("closed loop"), std::string::npos) << why;
-  }
+  const std::string loop = Refusal(FloatingBaseFourBar());
+  EXPECT_NE(loop.find("closed loop"), std::string::npos) << loop;
   // A spring from the first rod to the third: no joint joins them.
-  {
-    std::string y = mbdae::testing::BallChainYaml(3, 0.05);
-    const size_t at = y.find("simulation:");
-    y = y.substr(0, at) +
-        "forces:\n  - {name: s, type: spring_damper, i: rod1.cm, j: rod3.cm, stiffness: 10, damping: 0, free_length: 0.2}\n" +
-        y.substr(at);
-    const mbs::Model model = mbs::LoadModelFromString(y, "test.yaml");
-    mbs::MultibodySystem sys(model);
-    HhtNewtonMatrix newton(sys, HhtOptions());
-    std::string why;
-    EXPECT_FALSE(BlockTreeLu::ForMechanicalSystem(newton.pattern(), sys.pattern(Matrix::kMass),
-                                                  sys.pattern(Matrix::kConstraintDq), 48, &why));
-    EXPECT_NE(why.find("which are not parent and child"), std::string::npos) << why;
-  }
+  std::string y = mbdae::testing::BallChainYaml(3, 0.05);
+  const size_t at = y.find("simulation:");
+  y = y.substr(0, at) +
+      "forces:\n  - {name: s, type: spring_damper, i: rod1.cm, j: rod3.cm, stiffness: 10, damping: 0, free_length: 0.2}\n" +
+      y.substr(at);
+  const std::string spring = Refusal(y);
+  EXPECT_NE(spring.find("which are not parent and child"), std::string::npos) << spring;
+  // The chain itself, with springs between neighbours: accepted.
+  EXPECT_EQ(Refusal(ChainYaml(3, true)), "");
 }
 
 // HHT with the tree against HHT with KLU: the same number of steps, iterations and
@@ -290,78 +317,46 @@ TEST(BlockTreeLu, RefusesLoopsAndForcesBetweenBodiesWithoutAJoint) {
 TEST(BlockTreeLu, HhtWithTheTreeTakesTheSameStepsAsWithKlu) {
   for (bool springs : {false, true}) {
     Consistent c(ChainYaml(30, springs));
-    HhtOptions klu_opt, tree_opt;
-    klu_opt.linear_solver = HhtOptions::LinearSolver::kKlu;
-    tree_opt.linear_solver = HhtOptions::LinearSolver::kTree;
-    auto klu = MakeHhtIntegrator(*c.system, klu_opt);
-    auto tree = MakeHhtIntegrator(*c.system, tree_opt);
-    klu->Initialize(c.x);
-    tree->Initialize(c.x);
-    ASSERT_TRUE(klu->AdvanceTo(0.2)) << klu->summary().message;
-    ASSERT_TRUE(tree->AdvanceTo(0.2)) << tree->summary().message;
-    const Summary& sk = klu->summary();
-    const Summary& st = tree->summary();
+    KluAndTree run(c, 0.2);
+    const Summary& sk = run.klu->summary();
+    const Summary& st = run.tree->summary();
     EXPECT_EQ(sk.linear_solver, "klu");
     EXPECT_EQ(st.linear_solver, "tree");
     EXPECT_EQ(st.klu_fallbacks, 0);
     EXPECT_EQ(st.steps_accepted, sk.steps_accepted);
     EXPECT_NEAR(st.newton_iterations, sk.newton_iterations, 0.01 * sk.newton_iterations);
-    const double dq = RelativeDifference(tree->state().q, klu->state().q);
-    const double dv = RelativeDifference(tree->state().v, klu->state().v);
+    const double dq = RelativeDifference(run.tree->state().q, run.klu->state().q);
+    const double dv = RelativeDifference(run.tree->state().v, run.klu->state().v);
     std::printf("HHT, 30 rods%s, 0.2 s: %ld steps, Newton %ld (KLU) and %ld (tree); q differs by %.1e, v by %.1e\n",
                 springs ? " with springs" : "", sk.steps_accepted, sk.newton_iterations,
                 st.newton_iterations, dq, dv);
     EXPECT_LT(dq, 1e-10);
     EXPECT_LT(dv, 1e-8);
   }
-  {
-    const mbs::Model model = mbs::LoadModel(std::string(MBDAE_TEST_MODELS) + "/pendulum.yaml");
-    mbs::MultibodySystem sys(model);
-    State x;
-    x.Resize(sys.num_coordinates(), sys.num_constraints());
-    sys.InitialState(x.q, x.v);
-    ASSERT_TRUE(MakeConsistent(sys, x).ok);
-    HhtOptions opt;
-    opt.linear_solver = HhtOptions::LinearSolver::kTree;
-    auto integ = MakeHhtIntegrator(sys, opt);
-    integ->Initialize(x);
-    ASSERT_TRUE(integ->AdvanceTo(0.1)) << integ->summary().message;
-    EXPECT_EQ(integ->summary().linear_solver, "tree");
-  }
 }
 
+// A loop of bodies: KLU, and the reason; a loop closed through the ground (the four-bar of
+// tests/app/models, which the forest does not see): KLU after the first factorisation.
 TEST(BlockTreeLu, HhtOnALoopUsesKluAndSaysWhy) {
-  const mbs::Model model = mbs::LoadModelFromString(FloatingBaseFourBar(), "fourbar.yaml");
-  mbs::MultibodySystem sys(model);
-  State x;
-  x.Resize(sys.num_coordinates(), sys.num_constraints());
-  sys.InitialState(x.q, x.v);
-  const ConsistencyReport rep = MakeConsistent(sys, x);
-  ASSERT_TRUE(rep.ok) << rep.message;
-  EXPECT_EQ(rep.redundant.size(), 3u);  // the out-of-plane equations of the loop
-  std::vector<int> kept;
-  for (int r = 0; r < sys.num_constraints(); ++r)
-    if (std::find(rep.redundant.begin(), rep.redundant.end(), r) == rep.redundant.end())
-      kept.push_back(r);
-  auto reduced = KeepConstraints(sys, kept);
-  State xr = x;
-  xr.lambda.assign(kept.size(), 0.0);
-  for (size_t k = 0; k < kept.size(); ++k) xr.lambda[k] = x.lambda[kept[k]];
-  HhtOptions klu_opt, tree_opt;
-  klu_opt.linear_solver = HhtOptions::LinearSolver::kKlu;
-  tree_opt.linear_solver = HhtOptions::LinearSolver::kTree;
-  auto klu = MakeHhtIntegrator(*reduced, klu_opt);
-  auto tree = MakeHhtIntegrator(*reduced, tree_opt);
-  klu->Initialize(xr);
-  tree->Initialize(xr);
-  ASSERT_TRUE(klu->AdvanceTo(0.05)) << klu->summary().message;
-  ASSERT_TRUE(tree->AdvanceTo(0.05)) << tree->summary().message;
-  EXPECT_EQ(tree->summary().linear_solver.rfind("klu (no tree: ", 0), 0u)
-      << tree->summary().linear_solver;
-  EXPECT_NE(tree->summary().linear_solver.find("closed loop"), std::string::npos);
+  Consistent c(FloatingBaseFourBar());
+  EXPECT_EQ(c.redundant, 3u);  // the out-of-plane equations of the loop
+  KluAndTree run(c, 0.05);
+  const std::string used = run.tree->summary().linear_solver;
+  EXPECT_EQ(used.rfind("klu (no tree: ", 0), 0u) << used;
+  EXPECT_NE(used.find("closed loop"), std::string::npos) << used;
   // KLU either way: bitwise the same run.
-  EXPECT_EQ(tree->state().q, klu->state().q);
-  EXPECT_EQ(tree->state().lambda, klu->state().lambda);
+  EXPECT_EQ(run.tree->state().q, run.klu->state().q);
+  EXPECT_EQ(run.tree->state().lambda, run.klu->state().lambda);
+
+  std::ifstream in(std::string(MBDAE_TEST_MODELS) + "/fourbar.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  Consistent g(text.str());
+  KluAndTree through_ground(g, 0.05);
+  const Summary& st = through_ground.tree->summary();
+  EXPECT_EQ(st.linear_solver, "klu (no tree: the first factorisation's pivots were unusable)");
+  EXPECT_EQ(st.klu_fallbacks, 1);
+  EXPECT_EQ(through_ground.tree->state().q, through_ground.klu->state().q);
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include "mbs/loader.h"
 #include "mbs/system.h"
 #include "tests/support/ball_chain.h"
+#include "tests/support/relative_difference.h"
 #include "tests/support/free_body_system.h"
 #include "tests/support/integrator_cases.h"
 #include "tests/support/nonlinear_system.h"
@@ -28,15 +29,7 @@ namespace {
 
 using testing::ConsistentState;
 
-// max |x - y| / max(max |y|, tiny) over the first n entries.
-double RelativeDifference(const std::vector<double>& x, const std::vector<double>& y) {
-  double d = 0, s = 0;
-  for (size_t i = 0; i < y.size(); ++i) {
-    d = std::max(d, std::abs(x[i] - y[i]));
-    s = std::max(s, std::abs(y[i]));
-  }
-  return s > 0 ? d / s : d;
-}
+using testing::RelativeDifference;
 
 struct Comparison {
   bool tree = false;      // the tree elimination was used

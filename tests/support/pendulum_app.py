@@ -1,5 +1,6 @@
 """Shared by the app tests on tests/app/models/pendulum.yaml (test_dense_output,
-test_erk, test_newton_tolerance): the program's runner and the pendulum's reference.
+test_erk, test_newton_tolerance, test_linear_solver): the program's runner, a simulate
+that opens its results file, and the pendulum's reference.
 
 models/pendulum.yaml: a 1 kg point mass on a massless 1 m link, pivot at the origin,
 revolute about z, released at rest from the horizontal under gravity -9.81 y.
@@ -7,6 +8,7 @@ revolute about z, released at rest from the horizontal under gravity -9.81 y.
 import os
 import subprocess
 
+import h5py
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -24,6 +26,34 @@ def run_ok(args, cwd):
     p = run(args, cwd)
     assert p.returncode == 0, p.stderr
     return p
+
+
+def simulate(tmp_path, model, name, extra=()):
+    """`mbdae simulate MODEL -o NAME --quiet EXTRA` in tmp_path, asserting exit 0; the
+    results file opened for reading."""
+    run_ok(["simulate", model, "-o", name, "--quiet", *extra], tmp_path)
+    return h5py.File(tmp_path / name, "r")
+
+
+PENDULUM_HHT = "  hht: {alpha: -0.1, step: 1.0e-3}\n"
+
+
+def pendulum_with_hht(path, more):
+    """The text of models/pendulum.yaml (at path) with `, MORE` added to its hht block."""
+    text = open(path).read()
+    assert PENDULUM_HHT in text
+    return text.replace(PENDULUM_HHT, PENDULUM_HHT[:-2] + ", " + more + "}\n")
+
+
+def assert_hht_key_error(tmp_path, text, what):
+    """`mbdae simulate` of text (a pendulum_with_hht text with a bad value) exits 2 with
+    the file and the hht block's line and `what` on stderr, and writes nothing."""
+    line = text[:text.index("  hht:")].count("\n") + 1
+    (tmp_path / "bad.yaml").write_text(text)
+    p = run(["simulate", "bad.yaml", "-o", "bad.h5"], tmp_path)
+    assert p.returncode == 2, p.stderr
+    assert "bad.yaml:%d:" % line in p.stderr and what in p.stderr, p.stderr
+    assert not (tmp_path / "bad.h5").exists()
 
 
 def reference_angle(t):
