@@ -450,7 +450,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, gradient.fd_step, gradient.newton_factor, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 }  // namespace
@@ -519,12 +519,12 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
       throw ApiError(MBDAE_ERROR_INPUT,
                      "option hht.form: expected equilibrium or negrut, got '" + v + "'");
     o.hht_form = v;
-  } else if (key == "hht.linear_solver") {
+  } else if (key == "hht.linear_solver" || key == "ida.linear_solver") {
     const std::string v = value;
     if (v != "klu" && v != "tree")
       throw ApiError(MBDAE_ERROR_INPUT,
-                     "option hht.linear_solver: expected klu or tree, got '" + v + "'");
-    o.hht_linear_solver = v;
+                     "option " + key + ": expected klu or tree, got '" + v + "'");
+    (key == "hht.linear_solver" ? o.hht_linear_solver : o.ida_linear_solver) = v;
   } else if (key == "ida.rtol") {
     o.ida_rtol = ParseOptionNumber(key, value);
   } else if (key == "ida.atol") {
@@ -581,6 +581,7 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "ida.dense_output") return boolean(s.ida_dense_output);
   if (key == "hht.form") return s.hht_form;
   if (key == "hht.linear_solver") return s.hht_linear_solver;
+  if (key == "ida.linear_solver") return s.ida_linear_solver;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);
   if (key == "ida.max_steps") return std::to_string(s.ida_max_steps);

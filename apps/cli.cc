@@ -232,7 +232,7 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       cl.overrides.hht_start = choice({"consistent", "perturbed"});
     } else if (arg == "--linear-solver") {
       only_simulate();
-      cl.overrides.hht_linear_solver = choice({"klu", "tree"});
+      cl.overrides.hht_linear_solver = cl.overrides.ida_linear_solver = choice({"klu", "tree"});
     } else if (arg == "--output-accelerations") {
       only_simulate();
       cl.overrides.output_accelerations = choice({"solved", "integrator"});

@@ -270,11 +270,10 @@ std::unique_ptr<BlockTreeLu> BlockTreeLu::Analyze(const CscPattern& a,
   return solver;
 }
 
-std::unique_ptr<BlockTreeLu> BlockTreeLu::ForMechanicalSystem(const CscPattern& a,
-                                                              const CscPattern& mass,
-                                                              const CscPattern& cq,
-                                                              int max_node_size,
-                                                              std::string* why) {
+std::unique_ptr<BlockTreeLu> BlockTreeLu::ForMechanicalSystem(
+    const CscPattern& a, const CscPattern& mass, const CscPattern& cq, int max_node_size,
+    std::string* why, const std::vector<int>& coordinate_offsets,
+    const std::vector<int>& row_offsets) {
   BodyJointForest f;
   if (!BodyJointForest::Find(mass, cq, &f, why)) return nullptr;
   const int nb = f.num_bodies, nn = static_cast<int>(f.vars.size());
@@ -289,15 +288,26 @@ std::unique_ptr<BlockTreeLu> BlockTreeLu::ForMechanicalSystem(const CscPattern& 
                std::to_string(children[j] + 1) + " bodies";
       return nullptr;
     }
+  // The unknowns of the forest's variable u (coordinate u < nq, row u - nq).
+  const std::vector<int> default_rows = {nq};
+  const std::vector<int>& rows = row_offsets.empty() ? default_rows : row_offsets;
+  auto append = [&](std::vector<int>& node, const std::vector<int>& vars) {
+    for (const std::vector<int>* offsets : {&coordinate_offsets, &rows})
+      for (int o : *offsets)
+        for (int u : vars) {
+          if (offsets == &coordinate_offsets && u < nq) node.push_back(u + o);
+          if (offsets == &rows && u >= nq) node.push_back(u - nq + o);
+        }
+  };
   // Body b with the rows of the joint above it (its parent in the forest, a joint unless
   // b is a root); the node above is the body above that joint.
   std::vector<std::vector<int>> nodes(nb);
   std::vector<int> parent(nb, -1);
   for (int b = 0; b < nb; ++b) {
-    nodes[b] = f.vars[b];
+    append(nodes[b], f.vars[b]);
     const int j = f.parent[b];
     if (j < 0) continue;
-    nodes[b].insert(nodes[b].end(), f.vars[j].begin(), f.vars[j].end());
+    append(nodes[b], f.vars[j]);
     parent[b] = f.parent[j];
   }
   return Analyze(a, nodes, parent, max_node_size, why);

@@ -46,10 +46,14 @@ class BlockTreeLu {
   // BodyJointForest (dae/tree_kkt.h), each joint merged into the one body below it. Null
   // with the reason when the forest does not exist, a joint couples more than two bodies,
   // or a does not fit the merged nodes (e.g. a force between bodies that no joint joins).
-  static std::unique_ptr<BlockTreeLu> ForMechanicalSystem(const CscPattern& a,
-                                                          const CscPattern& mass,
-                                                          const CscPattern& constraint_dq,
-                                                          int max_node_size, std::string* why);
+  // The unknowns of coordinate j are j + o for every o in coordinate_offsets, those of
+  // constraint row r are r + o for every o in row_offsets: {0} and {nq} (empty: the
+  // default) for HHT's (a, lambda); {0, nq} and {2 nq, 2 nq + nc} for IDA's
+  // (q, v, lambda, mu) of the stabilised index-2 form.
+  static std::unique_ptr<BlockTreeLu> ForMechanicalSystem(
+      const CscPattern& a, const CscPattern& mass, const CscPattern& constraint_dq,
+      int max_node_size, std::string* why, const std::vector<int>& coordinate_offsets = {0},
+      const std::vector<int>& row_offsets = {});
   ~BlockTreeLu();
   BlockTreeLu(const BlockTreeLu&) = delete;
   BlockTreeLu& operator=(const BlockTreeLu&) = delete;

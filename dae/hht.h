@@ -82,7 +82,7 @@ struct HhtOptions {
   // whose bodies, joints and forces form a tree. Where the system is no such tree, kTree
   // uses KLU (Summary::linear_solver says which ran), and a factorisation whose pivot ratio
   // is tiny or has dropped is redone by KLU (counted in Summary::klu_fallbacks).
-  enum class LinearSolver { kKlu, kTree };
+  using LinearSolver = LinearSolverKind;
   LinearSolver linear_solver = LinearSolver::kKlu;
   // One AdvanceTo call fails (with a message) after this many step attempts beyond the
   // number the nominal step needs to reach its target: the step size has collapsed

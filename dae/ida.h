@@ -67,6 +67,12 @@ struct IdaOptions {
   // from y'; the quadrature from IDAGetQuadDky). The steps land on stop_time instead
   // (infinity: no stop time; AdvanceTo beyond it fails).
   bool dense_output = false;
+  // The linear solver of the iteration matrix: kKlu (default) or kTree, the block
+  // elimination along the tree of bodies (dae/block_tree_lu.h; each node a body's q, v
+  // and the lambda, mu of its own rows and of the joint to its parent), KLU where the
+  // system is no tree and from the first factorisation on whose solve's backward error
+  // exceeds 1e-12 (Summary::linear_solver, klu_fallbacks; see TreeSetup in ida.cc).
+  LinearSolverKind linear_solver = LinearSolverKind::kKlu;
   double stop_time = std::numeric_limits<double>::infinity();
 
   bool IsValid(std::string* error) const;

@@ -25,6 +25,11 @@ struct State {
 };
 
 // Counters and how the last call ended. Counters accumulate from Initialize().
+// The linear solver of an implicit integrator's Newton matrix (HHT, IDA): KLU's sparse
+// LU, or the block elimination along the tree of bodies (dae/block_tree_lu.h), which
+// uses KLU where the system is no tree (docs/hht.md, "Linear solver").
+enum class LinearSolverKind { kKlu, kTree };
+
 struct Summary {
   enum class Status { kNotStarted, kRunning, kDone, kFailed };
   Status status = Status::kNotStarted;
@@ -37,8 +42,9 @@ struct Summary {
   long factorizations = 0;   // numeric (re)factorisations
   long residual_evaluations = 0;
   long newton_noise_stops = 0;  // HHT: Newton iterations accepted at the round-off floor
-  // HHT: the linear solver of its Newton matrix ("klu" or "tree", HhtOptions::linear_solver;
-  // "tree" also when some factorisations fell back to KLU), and how many did.
+  // HHT and IDA: the linear solver of the Newton matrix ("klu", "tree", or "klu (no tree:
+  // REASON)" when the tree was asked for; "tree" also when some factorisations fell back
+  // to KLU), and how many did.
   std::string linear_solver;
   long klu_fallbacks = 0;
   double h_last = 0;         // last step size used

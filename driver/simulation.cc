@@ -80,6 +80,9 @@ dae::IdaOptions IdaOptionsOf(const mbs::SimulationSettings& s) {
   o.max_steps = s.ida_max_steps;
   o.min_step = s.ida_min_step;
   o.dense_output = s.ida_dense_output;
+  if (!dae::ParseHhtLinearSolver(s.ida_linear_solver, &o.linear_solver))
+    throw InputError("ida settings: linear_solver must be klu or tree, got '" +
+                     s.ida_linear_solver + "'");
   return o;
 }
 
@@ -156,6 +159,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_modified) s.hht_modified = *o.hht_modified;
   if (o.hht_dense_output) s.hht_dense_output = *o.hht_dense_output;
   if (o.ida_dense_output) s.ida_dense_output = *o.ida_dense_output;
+  if (o.ida_linear_solver) s.ida_linear_solver = *o.ida_linear_solver;
   if (o.hht_form) s.hht_form = *o.hht_form;
   if (o.hht_start) s.hht_start = *o.hht_start;
   if (o.hht_linear_solver) s.hht_linear_solver = *o.hht_linear_solver;
@@ -487,6 +491,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("ida_max_steps", settings.ida_max_steps);
     file.SetAttribute("ida_min_step", settings.ida_min_step);
     file.SetAttribute("ida_dense_output", settings.ida_dense_output ? 1 : 0);
+    file.SetAttribute("ida_linear_solver", settings.ida_linear_solver);
   } else if (settings.integrator == mbs::IntegratorKind::kErk) {
     file.SetAttribute("erk_rtol", settings.erk_rtol);
     file.SetAttribute("erk_atol", settings.erk_atol);

@@ -56,6 +56,7 @@ struct SettingsOverrides {
   std::optional<long> ida_max_steps;
   std::optional<double> ida_min_step;
   std::optional<bool> ida_dense_output;
+  std::optional<std::string> ida_linear_solver;     // "klu" | "tree"
   std::optional<double> erk_rtol, erk_atol;
   std::optional<long> erk_max_steps;
   std::optional<double> erk_min_step, erk_max_step;

@@ -1643,8 +1643,13 @@ class Loader {
       }
     }
     if (const YAML::Node i = node["ida"]) {
-      CheckKeys(i, element, {"rtol", "atol", "max_steps", "min_step", "dense_output"}, "ida");
+      CheckKeys(i, element, {"rtol", "atol", "max_steps", "min_step", "dense_output", "linear_solver"},
+                "ida");
       if (const YAML::Node n = i["dense_output"]) s.ida_dense_output = Bool(n, element, "dense_output");
+      if (const YAML::Node n = i["linear_solver"]) {
+        s.ida_linear_solver = Enum<std::string>(n, element, "linear_solver",
+                                                {{"klu", "klu"}, {"tree", "tree"}});
+      }
       if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
       if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
       if (const YAML::Node n = i["max_steps"]) {

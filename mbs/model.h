@@ -286,6 +286,9 @@ struct SimulationSettings {
   // IDA's dense output (dae/ida.h IdaOptions::dense_output): the file's `ida:
   // {dense_output}`; not with gradients.
   bool ida_dense_output = false;
+  // The linear solver of IDA's iteration matrix (dae/ida.h IdaOptions::linear_solver):
+  // "klu" or "tree", as hht_linear_solver; the file's `ida: {linear_solver}`.
+  std::string ida_linear_solver = "klu";
   // The explicit Runge-Kutta integrator (dae/erk.h ErkOptions): its local error
   // tolerances, step budget (total steps), smallest step (0: 1e-14 max(1, |t|)) and
   // largest step (0: no limit); the file's `erk: {rtol, atol, max_steps, min_step,

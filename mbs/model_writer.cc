@@ -344,6 +344,8 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;
   if (sim.ida_min_step > 0) s << ", min_step: " << Num(sim.ida_min_step);
   if (sim.ida_dense_output) s << ", dense_output: true";
+  if (sim.ida_linear_solver != SimulationSettings().ida_linear_solver)
+    s << ", linear_solver: " << sim.ida_linear_solver;
   s << "}\n";
   // The erk block only when it is used or set (files written before it existed stay as
   // they were).

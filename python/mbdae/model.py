@@ -42,7 +42,7 @@ MATRICES = {
 OPTIONS = ("t_end", "output_step", "integrator", "hht.alpha", "hht.step", "hht.adaptive",
            "hht.tolerance", "hht.modified", "hht.form", "hht.dense_output", "hht.newton_tolerance",
            "hht.linear_solver", "ida.rtol", "ida.atol",
-           "ida.max_steps", "ida.min_step", "ida.dense_output", "erk.rtol", "erk.atol", "erk.max_steps",
+           "ida.max_steps", "ida.min_step", "ida.dense_output", "ida.linear_solver", "erk.rtol", "erk.atol", "erk.max_steps",
            "erk.min_step", "erk.max_step", "gradient.fd_step", "gradient.newton_factor",
            "gradient.trajectory_memory", "gradient.ida_checkpoint_steps")
 

@@ -10,7 +10,11 @@ Python package.
   for the run, linear_solver_used gives the reason and the run is bitwise KLU's;
 - the model file's key: read, overridden by the command line, checked with file and line
   (exit 2, nothing written), written back by `convert` only when not the default;
-- the Python package takes options["hht.linear_solver"].
+- IDA (`--integrator ida`; `ida: {linear_solver}`, options["ida.linear_solver"]): the
+  tree on the pendulum, rows within 1e-7 rad of KLU's (IDA adapts its steps to what the
+  solves give, so not bitwise), and on the four-bar the first factorisation's check sends
+  it to KLU (bitwise KLU's run);
+- the Python package takes options["hht.linear_solver"] and options["ida.linear_solver"].
 """
 import os
 import sys
@@ -70,6 +74,36 @@ def test_model_file_key_override_errors_and_convert(tmp_path):
     assert not (tmp_path / "bad.h5").exists()
 
 
+def test_ida(tmp_path):
+    ida = ["--integrator", "ida"]
+    with simulate(tmp_path, PENDULUM, "k.h5", ida) as k, \
+            simulate(tmp_path, PENDULUM, "t.h5", ida + ["--linear-solver", "tree"]) as t:
+        assert k.attrs["ida_linear_solver"] == "klu" and k.attrs["linear_solver_used"] == "klu"
+        assert t.attrs["ida_linear_solver"] == "tree" and t.attrs["linear_solver_used"] == "tree"
+        diff = np.max(np.abs(t["/measures/angle"][:] - k["/measures/angle"][:]))
+        print("pendulum, IDA: rows of tree and klu apart by %.1e rad" % diff)
+        assert diff < 1e-7
+    extra = ida + ["--t-end", "0.2"]
+    with simulate(tmp_path, FOURBAR, "fk.h5", extra) as k, \
+            simulate(tmp_path, FOURBAR, "ft.h5", extra + ["--linear-solver", "tree"]) as t:
+        used = t.attrs["linear_solver_used"]
+        assert used == "klu (no tree: a factorisation failed its check at t = 0)", used
+        assert np.array_equal(t["/q"][:], k["/q"][:])
+    text = open(PENDULUM).read()
+    old = "  ida: {rtol: 1.0e-8, atol: 1.0e-10}\n"
+    assert old in text
+    good = text.replace(old, "  ida: {rtol: 1.0e-8, atol: 1.0e-10, linear_solver: tree}\n")
+    (tmp_path / "i.yaml").write_text(good)
+    with simulate(tmp_path, "i.yaml", "i.h5", ida) as f:
+        assert f.attrs["ida_linear_solver"] == "tree"
+    run_ok(["convert", "i.yaml", "-o", "j.yaml"], tmp_path)
+    assert "linear_solver: tree}" in (tmp_path / "j.yaml").read_text()
+    (tmp_path / "bad.yaml").write_text(good.replace("linear_solver: tree", "linear_solver: lu"))
+    p = run(["simulate", "bad.yaml", "-o", "bad.h5"], tmp_path)
+    assert p.returncode == 2 and "linear_solver" in p.stderr, p.stderr
+    assert not (tmp_path / "bad.h5").exists()
+
+
 def test_python_option():
     import mbdae
     angles = {}
@@ -83,8 +117,12 @@ def test_python_option():
     assert len(angles["tree"]) == 51
     assert np.max(np.abs(angles["tree"] - angles["klu"])) < 1e-12
     with mbdae.Model(PENDULUM) as m:
-        try:
-            m.options["hht.linear_solver"] = "lu"
-            raise AssertionError("accepted 'lu'")
-        except mbdae.Error as e:
-            assert "expected klu or tree" in str(e)
+        assert m.options["ida.linear_solver"] == "klu"
+        m.options["ida.linear_solver"] = "tree"
+        assert m.options["ida.linear_solver"] == "tree"
+        for key in ("hht.linear_solver", "ida.linear_solver"):
+            try:
+                m.options[key] = "lu"
+                raise AssertionError("accepted 'lu'")
+            except mbdae.Error as e:
+                assert "expected klu or tree" in str(e)

@@ -3,7 +3,8 @@
 // of a chain of rods (with springs between neighbours, which couple bodies directly), its
 // refusals, and HHT with HhtOptions::LinearSolver::kTree against KLU (the same steps and
 // states to round-off; a loop falls back to KLU with the reason; a pendulum, the
-// single-body tree, is covered by tests/app/test_linear_solver.py).
+// single-body tree, is covered by tests/app/test_linear_solver.py), and IDA with
+// IdaOptions::linear_solver kTree against KLU.
 #include "dae/block_tree_lu.h"
 
 #include <gtest/gtest.h>
@@ -20,6 +21,7 @@
 
 #include "dae/consistent.h"
 #include "dae/hht.h"
+#include "dae/ida.h"
 #include "dae/klu_solver.h"
 #include "mbs/loader.h"
 #include "mbs/system.h"
@@ -357,6 +359,55 @@ TEST(BlockTreeLu, HhtOnALoopUsesKluAndSaysWhy) {
   EXPECT_EQ(st.linear_solver, "klu (no tree: the first factorisation's pivots were unusable)");
   EXPECT_EQ(st.klu_fallbacks, 1);
   EXPECT_EQ(through_ground.tree->state().q, through_ground.klu->state().q);
+}
+
+// IDA (the stabilised index-2 form: each node a body's q and v with the lambda and mu of
+// its rows) with the tree against KLU: adaptive, so not the same steps, but the same
+// solution within its tolerance; the loops fall back to KLU (a loop closed through the
+// ground by the backward-error check of the first factorisation, after which the run is
+// KLU's).
+std::unique_ptr<Integrator> RunIda(Consistent& c, LinearSolverKind solver, double t_end) {
+  IdaOptions opt;
+  opt.rtol = opt.atol = 1e-8;
+  opt.linear_solver = solver;
+  auto ida = MakeIdaIntegrator(*c.kept, opt);
+  ida->Initialize(c.x);
+  EXPECT_TRUE(ida->AdvanceTo(t_end)) << ida->summary().message;
+  return ida;
+}
+
+TEST(BlockTreeLu, IdaWithTheTreeAgreesWithKlu) {
+  for (bool springs : {false, true}) {
+    Consistent c(ChainYaml(30, springs));
+    auto klu = RunIda(c, LinearSolverKind::kKlu, 0.2);
+    auto tree = RunIda(c, LinearSolverKind::kTree, 0.2);
+    const Summary& sk = klu->summary();
+    const Summary& st = tree->summary();
+    EXPECT_EQ(sk.linear_solver, "klu");
+    EXPECT_EQ(st.linear_solver, "tree");
+    EXPECT_EQ(st.klu_fallbacks, 0);
+    const double dq = RelativeDifference(tree->state().q, klu->state().q);
+    std::printf("IDA rtol 1e-8, 30 rods%s, 0.2 s: %ld and %ld steps (KLU, tree); q differs by %.1e\n",
+                springs ? " with springs" : "", sk.steps_accepted, st.steps_accepted, dq);
+    EXPECT_LT(dq, 1e-6);
+    EXPECT_NEAR(st.steps_accepted, sk.steps_accepted, 0.2 * sk.steps_accepted);
+  }
+  {
+    Consistent c(FloatingBaseFourBar());
+    auto tree = RunIda(c, LinearSolverKind::kTree, 0.05);
+    EXPECT_NE(tree->summary().linear_solver.find("closed loop"), std::string::npos)
+        << tree->summary().linear_solver;
+  }
+  std::ifstream in(std::string(MBDAE_TEST_MODELS) + "/fourbar.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  Consistent g(text.str());
+  auto klu = RunIda(g, LinearSolverKind::kKlu, 0.05);
+  auto tree = RunIda(g, LinearSolverKind::kTree, 0.05);
+  EXPECT_EQ(tree->summary().linear_solver,
+            "klu (no tree: a factorisation failed its check at t = 0)");
+  EXPECT_EQ(tree->summary().klu_fallbacks, 1);
+  EXPECT_EQ(tree->state().q, klu->state().q);
 }
 
 }  // namespace

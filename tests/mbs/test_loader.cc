@@ -237,7 +237,7 @@ TEST(Loader, IdaStepBudgetAndSmallestStep) {
     EXPECT_EQ(error.find(message), 0u) << ida << ": " << error << "\nexpected: " << message;
   }
   EXPECT_TRUE(Contains(LoadError("format: 1\nsimulation: {ida: {max_step: 100}}\n"),
-                       "(allowed keys: rtol, atol, max_steps, min_step, dense_output)"));
+                       "(allowed keys: rtol, atol, max_steps, min_step, dense_output, linear_solver)"));
 }
 
 TEST(Loader, MinimalModelAndDefaults) {
