@@ -1,0 +1,135 @@
+#!/usr/bin/env python3
+"""The linear solvers of HHT and IDA (klu, tree) side by side on issue 12's ball chains.
+
+    /usr/bin/python3 bench/linear_solver.py --mbdae BUILD/mbdae [--repeats 3] [--n 10 100 1000]
+
+For every chain (`bench/scenes/ball_chain.py`, 1 s), integrator setting and linear solver
+(`--linear-solver klu|tree`, `docs/hht.md`, "Linear solver") one `mbdae simulate` run,
+repeated `--repeats` times with the runs shuffled in every repeat (so that the two solvers
+of a setting alternate over the invocation): HHT fixed h = 1e-3 and 2.5e-4, IDA rtol =
+atol 1e-6 and 1e-8 (N = 1000: HHT h = 1e-3 and IDA 1e-6 only). Reported: the tip error at
+t = 1 s against the peers benchmark's reference (`bench/results/peers/reference_chainN.json`),
+steps, Newton iterations, factorisations, the solver CPU time (median over the repeats)
+and its ratio tree / klu, and the linear solver that ran. Writes
+`bench/results/linear_solver.md` and `.json`. The tests do not run it.
+"""
+import argparse
+import json
+import math
+import os
+import random
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import h5py
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "bench", "peers"))
+import run as peers  # noqa: E402  (tip_of)
+
+SETTINGS = {
+    10: [("hht", 1e-3), ("hht", 2.5e-4), ("ida", 1e-6), ("ida", 1e-8)],
+    100: [("hht", 1e-3), ("hht", 2.5e-4), ("ida", 1e-6), ("ida", 1e-8)],
+    1000: [("hht", 1e-3), ("ida", 1e-6)],
+}
+SOLVERS = ("klu", "tree")
+
+
+def simulate(mbdae, model, n, integrator, value, solver, out):
+    cmd = [mbdae, "simulate", model, "-o", out, "--quiet", "--integrator", integrator,
+           "--linear-solver", solver]
+    cmd += ["--fixed-step", "--step", repr(value)] if integrator == "hht" else \
+        ["--rtol", repr(value), "--atol", repr(value)]
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    if p.returncode != 0:
+        return {"status": "failed", "message": p.stderr.strip()[-300:]}
+    with h5py.File(out, "r") as f:
+        a = f.attrs
+        body = f["bodies/rod%d" % n]
+        return {"status": str(a["status"]),
+                "tip": peers.tip_of(body["position"][-1], body["orientation"][-1]),
+                "solver_time": float(a["solver_cpu_time"]), "newton": int(a["newton_iterations"]),
+                "factorizations": int(a["factorizations"]), "steps": int(a["steps_accepted"]),
+                "used": str(a["linear_solver_used"]), "fallbacks": int(a["klu_fallbacks"])}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--n", type=int, nargs="+", default=sorted(SETTINGS))
+    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
+    a = ap.parse_args()
+    refs = {}
+    for n in a.n:
+        with open(os.path.join(ROOT, "bench", "results", "peers", "reference_chain%d.json" % n)) as f:
+            refs[n] = json.load(f)["tip"]
+    runs_of = [(n, integ, value, solver) for n in a.n for integ, value in SETTINGS[n] for solver in SOLVERS]
+    runs = {s: [] for s in runs_of}
+    load_before = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        models = {}
+        for n in a.n:
+            models[n] = os.path.join(tmp, "chain%d.yaml" % n)
+            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "scenes", "ball_chain.py"), str(n),
+                            "-o", models[n], "--output-step", "1"], check=True)
+        for rep in range(a.repeats):
+            order = list(runs_of)
+            random.Random(rep).shuffle(order)
+            for s in order:
+                n, integ, value, solver = s
+                r = simulate(a.mbdae, models[n], n, integ, value, solver, os.path.join(tmp, "run.h5"))
+                runs[s].append(r)
+                print("repeat %d: N = %d, %s %g, %s: %s" % (
+                    rep + 1, n, integ, value, solver,
+                    "%.3f s" % r["solver_time"] if "solver_time" in r else r["status"]), flush=True)
+    rows = []
+    for s in runs_of:
+        n, integ, value, solver = s
+        ok = [r for r in runs[s] if r["status"] == "done"]
+        row = {"n": n, "integrator": integ, "setting": value, "solver": solver, "runs": len(runs[s]),
+               "done": len(ok)}
+        if ok:
+            r0 = ok[0]
+            row.update(error=math.dist(r0["tip"], refs[n]), steps=r0["steps"], newton=r0["newton"],
+                       factorizations=r0["factorizations"], used=r0["used"], fallbacks=r0["fallbacks"],
+                       solver_time=statistics.median(r["solver_time"] for r in ok),
+                       same_result=all(r["tip"] == r0["tip"] for r in ok))
+        rows.append(row)
+    out = {"command": " ".join(["bench/linear_solver.py"] + sys.argv[1:]),
+           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+           "load_before": load_before, "load_after": os.getloadavg()[0], "rows": rows}
+    with open(os.path.join(a.results, "linear_solver.json"), "w") as f:
+        json.dump(out, f, indent=1)
+    lines = ["# The linear solvers of HHT and IDA on the ball chains", "",
+             "`/usr/bin/python3 bench/linear_solver.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
+             "average %.1f before and %.1f after. 1 s of each chain; HHT fixed step (alpha = -0.1, "
+             "equilibrium form, modified), IDA rtol = atol; error: the tip at t = 1 s against "
+             "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
+             "the repeats; ratio: tree / klu of the same setting."
+             % (a.repeats, out["date"], load_before, out["load_after"]), "",
+             "| N | integrator | setting | solver | ran | tip error [m] | steps | Newton iterations "
+             "| factorisations | solver CPU [s] | tree / klu |",
+             "| ---: | --- | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    klu = {(r["n"], r["integrator"], r["setting"]): r for r in rows
+           if r["solver"] == "klu" and "solver_time" in r}
+    for r in rows:
+        what = "h = %g" % r["setting"] if r["integrator"] == "hht" else "rtol %g" % r["setting"]
+        if "solver_time" not in r:
+            lines.append("| %d | %s | %s | %s | failed | | | | | | |" % (r["n"], r["integrator"], what, r["solver"]))
+            continue
+        k = klu.get((r["n"], r["integrator"], r["setting"]))
+        ratio = "%.2f" % (r["solver_time"] / k["solver_time"]) if k and r["solver"] == "tree" else ""
+        lines.append("| %d | %s | %s | %s | %s | %.3g | %d | %d | %d | %.3g | %s |" % (
+            r["n"], r["integrator"], what, r["solver"], r["used"], r["error"], r["steps"], r["newton"],
+            r["factorizations"], r["solver_time"], ratio))
+    with open(os.path.join(a.results, "linear_solver.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
