@@ -53,8 +53,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include "dae/consistent.h"
 #include "dae/block_tree_lu.h"
+#include "dae/consistent.h"
 #include "dae/klu_solver.h"
 
 namespace mbdae::dae {
