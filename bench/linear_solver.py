@@ -17,18 +17,14 @@ import argparse
 import json
 import math
 import os
-import random
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 
-import h5py
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import chain_runs  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "bench", "peers"))
-import run as peers  # noqa: E402  (tip_of)
+ROOT = chain_runs.ROOT
 
 SETTINGS = {
     10: [("hht", 1e-3), ("hht", 2.5e-4), ("ida", 1e-6), ("ida", 1e-8)],
@@ -38,22 +34,10 @@ SETTINGS = {
 SOLVERS = ("klu", "tree")
 
 
-def simulate(mbdae, model, n, integrator, value, solver, out):
-    cmd = [mbdae, "simulate", model, "-o", out, "--quiet", "--integrator", integrator,
-           "--linear-solver", solver]
-    cmd += ["--fixed-step", "--step", repr(value)] if integrator == "hht" else \
-        ["--rtol", repr(value), "--atol", repr(value)]
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0:
-        return {"status": "failed", "message": p.stderr.strip()[-300:]}
-    with h5py.File(out, "r") as f:
-        a = f.attrs
-        body = f["bodies/rod%d" % n]
-        return {"status": str(a["status"]),
-                "tip": peers.tip_of(body["position"][-1], body["orientation"][-1]),
-                "solver_time": float(a["solver_cpu_time"]), "newton": int(a["newton_iterations"]),
-                "factorizations": int(a["factorizations"]), "steps": int(a["steps_accepted"]),
-                "used": str(a["linear_solver_used"]), "fallbacks": int(a["klu_fallbacks"])}
+def options(integrator, value, solver):
+    o = ["--integrator", integrator, "--linear-solver", solver]
+    return o + (["--fixed-step", "--step", repr(value)] if integrator == "hht" else
+                ["--rtol", repr(value), "--atol", repr(value)])
 
 
 def main():
@@ -63,29 +47,14 @@ def main():
     ap.add_argument("--n", type=int, nargs="+", default=sorted(SETTINGS))
     ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
     a = ap.parse_args()
-    refs = {}
-    for n in a.n:
-        with open(os.path.join(ROOT, "bench", "results", "peers", "reference_chain%d.json" % n)) as f:
-            refs[n] = json.load(f)["tip"]
+    refs = chain_runs.references(a.n)
     runs_of = [(n, integ, value, solver) for n in a.n for integ, value in SETTINGS[n] for solver in SOLVERS]
-    runs = {s: [] for s in runs_of}
     load_before = os.getloadavg()[0]
-    with tempfile.TemporaryDirectory() as tmp:
-        models = {}
-        for n in a.n:
-            models[n] = os.path.join(tmp, "chain%d.yaml" % n)
-            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "scenes", "ball_chain.py"), str(n),
-                            "-o", models[n], "--output-step", "1"], check=True)
-        for rep in range(a.repeats):
-            order = list(runs_of)
-            random.Random(rep).shuffle(order)
-            for s in order:
-                n, integ, value, solver = s
-                r = simulate(a.mbdae, models[n], n, integ, value, solver, os.path.join(tmp, "run.h5"))
-                runs[s].append(r)
-                print("repeat %d: N = %d, %s %g, %s: %s" % (
-                    rep + 1, n, integ, value, solver,
-                    "%.3f s" % r["solver_time"] if "solver_time" in r else r["status"]), flush=True)
+    runs = chain_runs.run_shuffled(
+        a.n, runs_of, a.repeats,
+        lambda model, s, out: chain_runs.simulate(a.mbdae, model, s[0], options(*s[1:]), out,
+                                                  ("linear_solver_used", "klu_fallbacks")),
+        lambda s: "N = %d, %s %g, %s" % s)
     rows = []
     for s in runs_of:
         n, integ, value, solver = s
@@ -95,7 +64,8 @@ def main():
         if ok:
             r0 = ok[0]
             row.update(error=math.dist(r0["tip"], refs[n]), steps=r0["steps"], newton=r0["newton"],
-                       factorizations=r0["factorizations"], used=r0["used"], fallbacks=r0["fallbacks"],
+                       factorizations=r0["factorizations"], used=r0["linear_solver_used"],
+                       fallbacks=r0["klu_fallbacks"],
                        solver_time=statistics.median(r["solver_time"] for r in ok),
                        same_result=all(r["tip"] == r0["tip"] for r in ok))
         rows.append(row)

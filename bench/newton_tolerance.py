@@ -16,37 +16,17 @@ import argparse
 import json
 import math
 import os
-import random
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 
-import h5py
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import chain_runs  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "bench", "peers"))
-sys.path.insert(0, os.path.join(ROOT, "bench", "scenes"))
-import run as peers  # noqa: E402  (tip_of, the references' location)
+ROOT = chain_runs.ROOT
 
 TOLERANCES = (1e-12, 1e-11, 1e-10, 1e-9, 1e-8)
 STEPS = {10: (1e-3, 2.5e-4), 100: (1e-3, 2.5e-4), 1000: (1e-3,)}
-
-
-def simulate(mbdae, model, n, h, tol, out):
-    cmd = [mbdae, "simulate", model, "-o", out, "--quiet", "--integrator", "hht", "--fixed-step",
-           "--step", repr(h), "--newton-tolerance", repr(tol)]
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0:
-        return {"status": "failed", "message": p.stderr.strip()[-300:]}
-    with h5py.File(out, "r") as f:
-        a = f.attrs
-        body = f["bodies/rod%d" % n]
-        return {"status": str(a["status"]), "tip": peers.tip_of(body["position"][-1], body["orientation"][-1]),
-                "solver_time": float(a["solver_cpu_time"]), "newton": int(a["newton_iterations"]),
-                "factorizations": int(a["factorizations"]), "steps": int(a["steps_accepted"]),
-                "rejected": int(a["steps_rejected"])}
 
 
 def main():
@@ -56,29 +36,15 @@ def main():
     ap.add_argument("--n", type=int, nargs="+", default=sorted(STEPS))
     ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
     a = ap.parse_args()
-    refs = {}
-    for n in a.n:
-        with open(os.path.join(ROOT, "bench", "results", "peers", "reference_chain%d.json" % n)) as f:
-            refs[n] = json.load(f)["tip"]
+    refs = chain_runs.references(a.n)
     settings = [(n, h, tol) for n in a.n for h in STEPS[n] for tol in TOLERANCES]
-    runs = {s: [] for s in settings}
     load_before = os.getloadavg()[0]
-    with tempfile.TemporaryDirectory() as tmp:
-        models = {}
-        for n in a.n:
-            models[n] = os.path.join(tmp, "chain%d.yaml" % n)
-            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "scenes", "ball_chain.py"), str(n),
-                            "-o", models[n], "--output-step", "1"], check=True)
-        for rep in range(a.repeats):
-            order = list(settings)
-            random.Random(rep).shuffle(order)
-            for s in order:
-                n, h, tol = s
-                r = simulate(a.mbdae, models[n], n, h, tol, os.path.join(tmp, "run.h5"))
-                runs[s].append(r)
-                print("repeat %d: N = %d, h = %g, newton_tolerance = %g: %s" % (
-                    rep + 1, n, h, tol, "%.3f s" % r["solver_time"] if "solver_time" in r else r["status"]),
-                    flush=True)
+    runs = chain_runs.run_shuffled(
+        a.n, settings, a.repeats,
+        lambda model, s, out: chain_runs.simulate(
+            a.mbdae, model, s[0], ["--integrator", "hht", "--fixed-step", "--step", repr(s[1]),
+                                   "--newton-tolerance", repr(s[2])], out),
+        lambda s: "N = %d, h = %g, newton_tolerance = %g" % s)
     rows = []
     for s in settings:
         n, h, tol = s

@@ -1,0 +1,70 @@
+"""Shared by the whole-run benchmarks on issue 12's ball chains (bench/newton_tolerance.py,
+bench/linear_solver.py): the chains' references, the chain models, `mbdae simulate` runs of
+a list of settings repeated with the order shuffled in every repeat (so that the runs of
+one setting spread over the invocation), and what a run's results file says."""
+import json
+import os
+import random
+import subprocess
+import sys
+import tempfile
+
+import h5py
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "bench", "peers"))
+import run as peers  # noqa: E402  (tip_of)
+
+
+def references(ns):
+    """The tip at t = 1 s of each chain N (bench/results/peers/reference_chainN.json)."""
+    refs = {}
+    for n in ns:
+        with open(os.path.join(ROOT, "bench", "results", "peers", "reference_chain%d.json" % n)) as f:
+            refs[n] = json.load(f)["tip"]
+    return refs
+
+
+def simulate(mbdae, model, n, options, out, attrs=()):
+    """`mbdae simulate MODEL -o OUT --quiet OPTIONS` of the chain of n rods: status, tip at
+    the last row, solver CPU time, Newton iterations, factorisations, steps (accepted,
+    rejected) and the results file's attributes `attrs`; status "failed" with the message
+    when the program fails."""
+    p = subprocess.run([mbdae, "simulate", model, "-o", out, "--quiet"] + list(options),
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        return {"status": "failed", "message": p.stderr.strip()[-300:]}
+    with h5py.File(out, "r") as f:
+        a = f.attrs
+        body = f["bodies/rod%d" % n]
+        r = {"status": str(a["status"]), "tip": peers.tip_of(body["position"][-1], body["orientation"][-1]),
+             "solver_time": float(a["solver_cpu_time"]), "newton": int(a["newton_iterations"]),
+             "factorizations": int(a["factorizations"]), "steps": int(a["steps_accepted"]),
+             "rejected": int(a["steps_rejected"])}
+        for k in attrs:
+            v = a[k]
+            r[k] = v.item() if hasattr(v, "item") else str(v)
+        return r
+
+
+def run_shuffled(ns, settings, repeats, run_one, describe):
+    """run_one(model_of_n, setting, out_path) for every setting (a tuple starting with N)
+    `repeats` times, the order shuffled in every repeat; chain models with one row per
+    second. Returns {setting: [results]}, and prints every run with describe(setting)."""
+    runs = {s: [] for s in settings}
+    with tempfile.TemporaryDirectory() as tmp:
+        models = {}
+        for n in ns:
+            models[n] = os.path.join(tmp, "chain%d.yaml" % n)
+            subprocess.run([sys.executable, os.path.join(ROOT, "bench", "scenes", "ball_chain.py"), str(n),
+                            "-o", models[n], "--output-step", "1"], check=True)
+        for rep in range(repeats):
+            order = list(settings)
+            random.Random(rep).shuffle(order)
+            for s in order:
+                r = run_one(models[s[0]], s, os.path.join(tmp, "run.h5"))
+                runs[s].append(r)
+                print("repeat %d: %s: %s" % (rep + 1, describe(s),
+                                             "%.3f s" % r["solver_time"] if "solver_time" in r else r["status"]),
+                      flush=True)
+    return runs
