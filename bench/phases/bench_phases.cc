@@ -22,12 +22,13 @@
 //                over the steps to t = 0.02 s
 //   hht_step_tree  the same with hht: {linear_solver: tree} (dae/block_tree_lu.h)
 //   ida_step     one IDA step (rtol = atol = 1e-6), the mean over the steps to 0.02 s
+//   ida_step_tree  the same with ida: {linear_solver: tree}
 //   row          driver::OutputRowBuilder::Compute of a row (with the model's
 //                output_accelerations: by default the acceleration-level solve of the row)
 //   create_file  io::ResultsFile of the run's layout and its attributes (once per run)
 //   write        io::ResultsFile::AppendRow of a row, written as `mbdae simulate` does
 //                (flush interval 0.2 s): the mean over 20 rows and the final flush
-// hht_step, hht_step_tree, ida_step and write are means over their steps or rows (one run each); the
+// hht_step, hht_step_tree, ida_step, ida_step_tree and write are means over their steps or rows (one run each); the
 // phases named in --skip are not run (their value is null).
 #include <algorithm>
 #include <chrono>
@@ -142,9 +143,9 @@ int main(int argc, char** argv) {
   driver::Assembly asmb;
   run("assemble", [&] { asmb = driver::Assemble(model); }, 0.0, [&] { asmb = driver::Assembly(); });
   bool later = false;
-  for (const char* p : {"determinacy", "residual", "jacobian", "hht_step", "hht_step_tree", "ida_step", "row", "write"})
+  for (const char* p : {"determinacy", "residual", "jacobian", "hht_step", "hht_step_tree", "ida_step", "ida_step_tree", "row", "write"})
     later = later || !skip.count(p);
-  if (!later) skip.insert({"determinacy", "residual", "jacobian", "hht_step", "hht_step_tree", "ida_step", "row", "write"});
+  if (!later) skip.insert({"determinacy", "residual", "jacobian", "hht_step", "hht_step_tree", "ida_step", "ida_step_tree", "row", "write"});
   if (!asmb.system && later) {
     driver::AssemblyOptions no_determinacy;
     no_determinacy.check_determinacy = false;
@@ -200,19 +201,23 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_phases: %-12s %.6g s (%ld steps, %s)\n", phase.c_str(), seconds[phase],
                  hht_steps, integ->summary().linear_solver.c_str());
   }
-  if (!skip.count("ida_step")) {
+  for (const char* solver : {"klu", "tree"}) {
+    const std::string phase = std::string("ida_step") + (solver == std::string("tree") ? "_tree" : "");
+    if (skip.count(phase)) continue;
     mbs::SimulationSettings s = model.simulation;
     s.integrator = mbs::IntegratorKind::kIda;
     s.ida_rtol = 1e-6;
     s.ida_atol = 1e-6;
+    s.ida_linear_solver = solver;
     auto integ = driver::MakeIntegrator(*asmb.kept_system, s);
     integ->Initialize(asmb.x0);
     const double t0 = Now();
     integ->AdvanceTo(t_steps);
     const double dt = Now() - t0;
     ida_steps = integ->summary().steps_accepted;
-    seconds["ida_step"] = dt / std::max(1L, ida_steps);
-    std::fprintf(stderr, "bench_phases: %-12s %.6g s (%ld steps)\n", "ida_step", seconds["ida_step"], ida_steps);
+    seconds[phase] = dt / std::max(1L, ida_steps);
+    std::fprintf(stderr, "bench_phases: %-12s %.6g s (%ld steps, %s)\n", phase.c_str(), seconds[phase],
+                 ida_steps, integ->summary().linear_solver.c_str());
   }
   if (!skip.count("row")) {
     driver::OutputRowBuilder rows(model, asmb, model.simulation);

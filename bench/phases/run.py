@@ -31,9 +31,10 @@ import ball_chain  # noqa: E402
 
 # The bench_phases runs, one process each ("write" also times create_file).
 RUNS = ["load", "build", "redundancy", "consistent", "determinacy", "assemble", "residual", "jacobian",
-        "hht_step", "hht_step_tree", "ida_step", "row", "write"]
+        "hht_step", "hht_step_tree", "ida_step", "ida_step_tree", "row", "write"]
 PHASES = ["load", "build", "redundancy", "consistent", "determinacy", "assemble", "residual",
-          "jacobian", "hht_step", "hht_step_tree", "ida_step", "row", "create_file", "write", "check"]
+          "jacobian", "hht_step", "hht_step_tree", "ida_step", "ida_step_tree", "row", "create_file", "write",
+          "check"]
 
 
 def fit(ns, ts):
