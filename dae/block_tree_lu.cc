@@ -119,6 +119,9 @@ struct BlockTreeLu::Impl {
   std::vector<int> perm;    // node-ordered index -> unknown of A
   std::vector<int> iface;   // per node: its interface's places in the parent's block
   std::vector<int> to;      // entry k of A's pattern -> index into values
+  CscPattern pattern;       // A's (BackwardError)
+  std::vector<double> check_b;                               // BackwardError's right side
+  mutable std::vector<double> check_x, check_r, check_row;  // and its work
   std::vector<double> values, w;
   std::vector<int> piv;  // per node: dim entries at nodes[i].x
   mutable std::vector<double> x;
@@ -267,6 +270,12 @@ std::unique_ptr<BlockTreeLu> BlockTreeLu::Analyze(const CscPattern& a,
   m.w.assign(nw, 0.0);
   m.piv.assign(n, 0);
   m.x.assign(n, 0.0);
+  m.pattern = a;
+  m.check_b.resize(n);
+  for (int i = 0; i < n; ++i) m.check_b[i] = 1.0 + 0.5 * std::sin(1.0 + i);
+  m.check_x.assign(n, 0.0);
+  m.check_r.assign(n, 0.0);
+  m.check_row.assign(n, 0.0);
   return solver;
 }
 
@@ -353,6 +362,31 @@ void BlockTreeLu::Solve(double* b) const {
 }
 
 double BlockTreeLu::rcond() const { return impl_->rcond; }
+
+double BlockTreeLu::BackwardError(const double* values) const {
+  const Impl& m = *impl_;
+  const CscPattern& p = m.pattern;
+  std::copy(m.check_b.begin(), m.check_b.end(), m.check_x.begin());
+  Solve(m.check_x.data());
+  std::fill(m.check_r.begin(), m.check_r.end(), 0.0);
+  std::fill(m.check_row.begin(), m.check_row.end(), 0.0);
+  double xmax = 0;
+  for (int c = 0; c < m.n; ++c) {
+    xmax = std::max(xmax, std::abs(m.check_x[c]));
+    for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k) {
+      m.check_r[p.row_index[k]] += values[k] * m.check_x[c];
+      m.check_row[p.row_index[k]] += std::abs(values[k]);
+    }
+  }
+  double rmax = 0, amax = 0, bmax = 0;
+  for (int i = 0; i < m.n; ++i) {
+    rmax = std::max(rmax, std::abs(m.check_r[i] - m.check_b[i]));
+    amax = std::max(amax, m.check_row[i]);
+    bmax = std::max(bmax, std::abs(m.check_b[i]));
+  }
+  const double e = rmax / (amax * xmax + bmax);
+  return std::isfinite(e) ? e : INFINITY;
+}
 int BlockTreeLu::num_nodes() const { return static_cast<int>(impl_->nodes.size()); }
 int BlockTreeLu::largest_node() const { return impl_->largest; }
 

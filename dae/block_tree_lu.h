@@ -65,6 +65,11 @@ class BlockTreeLu {
   void Solve(double* b) const;
   // min |U_ii| / max |U_ii| over the pivots of every block of the last Factor.
   double rcond() const;
+  // The normwise backward error |A x - b|_inf / (|A|_inf |x|_inf + |b|_inf) of the last
+  // Factor's solve of one fixed right side b (values: the matrix that was factorised),
+  // infinity when not finite: a check of the factors where the pivot ratio says nothing
+  // (IDA's index-2 iteration matrix, dae/ida.cc).
+  double BackwardError(const double* values) const;
   int num_nodes() const;
   int largest_node() const;
   // Floating-point operations of one Factor and of one Solve, counted from the blocks (a

@@ -517,12 +517,6 @@ ConsistencyReport MakeConsistent(MechanicalSystem& system, State& x,
 
 namespace mbdae::dae {
 
-namespace {
-// The tree elimination's pivot ratio below which KLU factorises instead (consistent.h).
-constexpr double kMinTreeRcond = 1e-14;
-constexpr double kTreeRcondDrop = 1e-6;  // relative to its first factorisation
-}  // namespace
-
 struct AccelerationSolver::Impl {
   MechanicalSystem& system;
   int nq = 0, nc = 0;
@@ -533,7 +527,7 @@ struct AccelerationSolver::Impl {
   std::unique_ptr<TreeKktSolver> tree;
   std::string error, tree_refusal = "not requested";
   bool used_tree = false;
-  double tree_rcond_first = 0;
+  TreePivotRule tree_rule;
   long klu_fallbacks = 0;
 
   Impl(MechanicalSystem& s, int growth_check_interval, bool tree_elimination)
@@ -602,9 +596,7 @@ int AccelerationSolver::Solve(double t, const double* q, const double* v, double
   if (m.tree) {
     // The rule of the class comment: the tree's pivots, else KLU.
     if (m.tree->Factor(m.mass.data(), m.cq.data())) {
-      const double rc = m.tree->rcond();
-      if (m.tree_rcond_first == 0 && rc > kMinTreeRcond) m.tree_rcond_first = rc;
-      if (std::isfinite(rc) && rc > kMinTreeRcond && rc > kTreeRcondDrop * m.tree_rcond_first) {
+      if (m.tree_rule.Accept(m.tree->rcond())) {
         m.tree->Solve(m.sol.data());
         m.used_tree = true;
         std::copy(m.sol.begin(), m.sol.begin() + m.nq, a);
@@ -613,7 +605,7 @@ int AccelerationSolver::Solve(double t, const double* q, const double* v, double
       }
     }
     ++m.klu_fallbacks;
-    if (m.tree_rcond_first == 0) {
+    if (!m.tree_rule.seen_usable()) {
       // The first factorisation failed: a loop closed through the ground (bodies tied to
       // the ground at two places are not a tree, though Analyze sees none) or a singular
       // start. KLU from here on.

@@ -56,6 +56,7 @@
 #include "dae/block_tree_lu.h"
 #include "dae/consistent.h"
 #include "dae/klu_solver.h"
+#include "dae/tree_kkt.h"
 
 namespace mbdae::dae {
 
@@ -813,23 +814,18 @@ class HhtIntegrator final : public Integrator {
   }
 
   // Factorises jac_: by the block tree elimination when it was set up and its pivots are
-  // usable (the rule of AccelerationSolver for dae/tree_kkt.h: a pivot ratio above
-  // kMinTreeRcond and not below kTreeRcondDrop times the first), else by KLU, which
+  // usable (TreePivotRule, as AccelerationSolver for dae/tree_kkt.h), else by KLU, which
   // takes over for good when the very first tree factorisation fails (e.g. a loop
   // closed through the ground, which the forest does not see).
   bool FactorNewtonMatrix(std::string* error) {
     use_tree_ = false;
     if (tree_) {
-      if (tree_->Factor(jac_.data())) {
-        const double rc = tree_->rcond();
-        if (tree_rcond_first_ == 0 && rc > kMinTreeRcond) tree_rcond_first_ = rc;
-        if (std::isfinite(rc) && rc > kMinTreeRcond && rc > kTreeRcondDrop * tree_rcond_first_) {
-          use_tree_ = true;
-          return true;
-        }
+      if (tree_->Factor(jac_.data()) && tree_rule_.Accept(tree_->rcond())) {
+        use_tree_ = true;
+        return true;
       }
       ++summary_.klu_fallbacks;
-      if (tree_rcond_first_ == 0) {
+      if (!tree_rule_.seen_usable()) {
         tree_.reset();
         tree_refusal_ = "the first factorisation's pivots were unusable";
         summary_.linear_solver = LinearSolverReport();
@@ -851,8 +847,6 @@ class HhtIntegrator final : public Integrator {
     return "klu";
   }
   static constexpr int kMaxTreeNode = 48;
-  static constexpr double kMinTreeRcond = 1e-14;
-  static constexpr double kTreeRcondDrop = 1e-6;
 
   // Weighted RMS norm of the position- and velocity-level Newton correction.
   double CorrectionNorm(double h) const {
@@ -1043,7 +1037,7 @@ class HhtIntegrator final : public Integrator {
   std::unique_ptr<BlockTreeLu> tree_;
   std::string tree_refusal_;
   bool use_tree_ = false;  // the last factorisation is tree_'s
-  double tree_rcond_first_ = 0;
+  TreePivotRule tree_rule_;
   // Work vectors (sized in the constructor; no allocation while stepping).
   std::vector<double> qn_, vn_, an_, lamn_, fn_, f_, force_, con_, res_, x_;
   std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)

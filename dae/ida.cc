@@ -702,8 +702,6 @@ class IdaIntegrator final : public Integrator {
     summary_.factorizations = counted_.factorizations + nsetups;
     summary_.residual_evaluations = counted_.residual_evaluations + nre + nrels;
     summary_.h_last = h;
-    summary_.klu_fallbacks = klu_fallbacks_;
-    summary_.linear_solver = LinearSolverReport();
   }
 
   void CopyState(double t) {
@@ -801,40 +799,13 @@ class IdaIntegrator final : public Integrator {
     use_tree_ = false;
     if (!tree_) return false;
     const double* values = SUNSparseMatrix_Data(A);
-    if (tree_->Factor(values) && TreeBackwardError(values) <= kTreeBackwardError)
+    if (tree_->Factor(values) && tree_->BackwardError(values) <= kTreeBackwardError)
       return use_tree_ = true;
-    ++klu_fallbacks_;
+    ++summary_.klu_fallbacks;
     tree_.reset();
     tree_refusal_ = "a factorisation failed its check at t = " + ToString(state_.t);
+    summary_.linear_solver = LinearSolverReport();
     return false;
-  }
-
-  double TreeBackwardError(const double* values) {
-    const CscPattern& p = ggl_.jacobian_pattern();
-    const int n = p.rows;
-    tree_b_.resize(n);
-    tree_x_.resize(n);
-    tree_r_.assign(n, 0.0);
-    tree_row_sum_.assign(n, 0.0);
-    for (int i = 0; i < n; ++i) tree_b_[i] = 1.0 + 0.5 * std::sin(1.0 + i);
-    tree_x_ = tree_b_;
-    tree_->Solve(tree_x_.data());
-    double xmax = 0, bmax = 0;
-    for (int c = 0; c < n; ++c) {
-      xmax = std::max(xmax, std::abs(tree_x_[c]));
-      for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k) {
-        tree_r_[p.row_index[k]] += values[k] * tree_x_[c];
-        tree_row_sum_[p.row_index[k]] += std::abs(values[k]);
-      }
-    }
-    double rmax = 0, amax = 0;
-    for (int i = 0; i < n; ++i) {
-      rmax = std::max(rmax, std::abs(tree_r_[i] - tree_b_[i]));
-      amax = std::max(amax, tree_row_sum_[i]);
-      bmax = std::max(bmax, std::abs(tree_b_[i]));
-    }
-    const double e = rmax / (amax * xmax + bmax);
-    return std::isfinite(e) ? e : INFINITY;
   }
 
   std::string LinearSolverReport() const {
@@ -1000,13 +971,11 @@ class IdaIntegrator final : public Integrator {
   MatrixPtr matrix_;
   LinearSolverPtr inner_solver_, solver_;
   // IdaOptions::linear_solver kTree: the block tree elimination (null when refused or
-  // after a factorisation failed its check), whether the last setup used it, the reason
-  // it is not used, and the setups KLU redid.
+  // after a factorisation failed its check), whether the last setup used it, and the
+  // reason it is not used (Summary::linear_solver, klu_fallbacks: set where they change).
   std::unique_ptr<BlockTreeLu> tree_;
   bool use_tree_ = false;
   std::string tree_refusal_;
-  long klu_fallbacks_ = 0;
-  std::vector<double> tree_b_, tree_x_, tree_r_, tree_row_sum_;  // TreeBackwardError
   static constexpr int kMaxTreeNode = 48;
   static constexpr double kTreeBackwardError = 1e-12;
   VectorPtr work_b_, work_x_;

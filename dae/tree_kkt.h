@@ -28,6 +28,7 @@
 // for the caller to decide on a fallback (dae/consistent.h AccelerationSolver).
 #pragma once
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -52,6 +53,25 @@ struct BodyJointForest {
 
   static bool Find(const CscPattern& mass, const CscPattern& constraint_dq,
                    BodyJointForest* forest, std::string* why);
+};
+
+// When a tree elimination's factorisation is used (AccelerationSolver with
+// TreeKktSolver, HHT with BlockTreeLu; the caller factorises by KLU otherwise): its pivot
+// ratio rcond() above kMinRcond and not below kDrop times that of the first factorisation
+// that passed. seen_usable(): one has passed (a first one that fails means the tree is no
+// use for this system, e.g. a loop closed through the ground).
+class TreePivotRule {
+ public:
+  static constexpr double kMinRcond = 1e-14;
+  static constexpr double kDrop = 1e-6;
+  bool Accept(double rcond) {
+    if (first_ == 0 && rcond > kMinRcond) first_ = rcond;
+    return std::isfinite(rcond) && rcond > kMinRcond && rcond > kDrop * first_;
+  }
+  bool seen_usable() const { return first_ > 0; }
+
+ private:
+  double first_ = 0;
 };
 
 class TreeKktSolver {

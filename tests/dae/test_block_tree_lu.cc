@@ -110,6 +110,7 @@ TEST(BlockTreeLu, MatchesDenseLuOnRandomForests) {
       for (int i = 0; i < n; ++i) ref[i] = r[i];
       EXPECT_LT(RelativeDifference(x, ref), 1e-12) << "max size " << max_size << ", seed " << seed;
       EXPECT_GT(lu->rcond(), 0);
+      EXPECT_LT(lu->BackwardError(f.values.data()), 1e-14);
       EXPECT_EQ(lu->num_nodes(), 25);
       // A second factorisation with other values (the pattern's zeros stay zero).
       for (double& v : f.values) v *= 1.5;
