@@ -131,9 +131,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       if (!grad) throw UsageError("option " + arg + " is only for `gradient`", true);
     };
     // Comma-separated names, each non-empty.
-    auto names = [&]() {
+    auto names = [&](std::optional<std::string> given = std::nullopt) {
       std::vector<std::string> out;
-      const std::string v = value();
+      const std::string v = given ? *given : value();
       size_t start = 0;
       while (true) {
         const size_t comma = v.find(',', start);
@@ -233,6 +233,21 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--linear-solver") {
       only_simulate();
       cl.overrides.hht_linear_solver = cl.overrides.ida_linear_solver = choice({"klu", "tree"});
+    } else if (arg == "--output-bodies" || arg == "--output-joints" || arg == "--output-forces" ||
+               arg == "--output-measures") {
+      // all, none or comma-separated names: the elements given datasets in the results file.
+      only_simulate();
+      const std::string v = value();
+      std::optional<std::vector<std::string>> chosen;
+      if (v == "none")
+        chosen.emplace();
+      else if (v != "all")
+        chosen = names(v);
+      auto& o = cl.overrides;
+      (arg == "--output-bodies"   ? o.output_bodies
+       : arg == "--output-joints" ? o.output_joints
+       : arg == "--output-forces" ? o.output_forces
+                                  : o.output_measures) = chosen;
     } else if (arg == "--output-accelerations") {
       only_simulate();
       cl.overrides.output_accelerations = choice({"solved", "integrator"});

@@ -9,6 +9,7 @@
 #include <strings.h>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <vector>
@@ -110,9 +111,37 @@ std::string DataJson(const io::ResultsReader& r, const ViewOptions& options) {
   const bool has_geometry = r.Has("geometry/body_names");
   const std::vector<std::string> bodies = has_geometry ? r.Strings("geometry/body_names") : r.Children("bodies");
   std::vector<std::vector<double>> positions, orientations;
+  // A body the run left out of /bodies (simulation: {output: {bodies}}) is drawn from
+  // its columns of /q (NAME.x, NAME.y, NAME.z, NAME.e0 .. NAME.e3), read once.
+  std::vector<double> q_table;
+  std::map<std::string, size_t> q_column;
   for (const std::string& b : bodies) {
-    const std::vector<double> p = r.Doubles("bodies/" + b + "/position");
-    const std::vector<double> q = r.Doubles("bodies/" + b + "/orientation");
+    std::vector<double> p, q;
+    if (r.Has("bodies/" + b + "/position")) {
+      p = r.Doubles("bodies/" + b + "/position");
+      q = r.Doubles("bodies/" + b + "/orientation");
+    } else {
+      if (q_column.empty()) {
+        const std::vector<std::string> names = r.Strings("q_names");
+        for (size_t c = 0; c < names.size(); ++c) q_column.emplace(names[c], c);
+        q_table = r.Doubles("q");
+      }
+      const size_t nq = q_column.size();
+      static const char* kCoord[7] = {"x", "y", "z", "e0", "e1", "e2", "e3"};
+      size_t col[7];
+      for (int k = 0; k < 7; ++k) {
+        const auto it = q_column.find(b + "." + kCoord[k]);
+        if (it == q_column.end())
+          throw ViewInputError(r.path() + ": body " + b + " has neither /bodies/" + b + " nor a column " + b +
+                               "." + kCoord[k] + " in /q_names");
+        col[k] = it->second;
+      }
+      if (q_table.size() < nq * n) throw ViewInputError(r.path() + ": /q has fewer rows than /time");
+      for (size_t row = 0; row < n; ++row) {
+        for (int k = 0; k < 3; ++k) p.push_back(q_table[row * nq + col[k]]);
+        for (int k = 3; k < 7; ++k) q.push_back(q_table[row * nq + col[k]]);
+      }
+    }
     if (p.size() < 3 * n || q.size() < 4 * n)
       throw ViewInputError(r.path() + ": /bodies/" + b + " has fewer rows than /time");
     positions.push_back(Take(p, 3, rows));

@@ -12,6 +12,7 @@
 #include <ctime>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -173,6 +174,10 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.erk_max_steps) s.erk_max_steps = *o.erk_max_steps;
   if (o.erk_min_step) s.erk_min_step = *o.erk_min_step;
   if (o.erk_max_step) s.erk_max_step = *o.erk_max_step;
+  if (o.output_bodies) s.output_bodies = *o.output_bodies;
+  if (o.output_joints) s.output_joints = *o.output_joints;
+  if (o.output_forces) s.output_forces = *o.output_forces;
+  if (o.output_measures) s.output_measures = *o.output_measures;
   if (!(s.t_end > 0) || !std::isfinite(s.t_end))
     throw InputError("simulation setting t_end must be > 0, got " + Num(s.t_end));
   if (!(s.output_step > 0) || !std::isfinite(s.output_step))
@@ -448,6 +453,27 @@ RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
   } catch (const std::invalid_argument&) {
   }
   for (const auto& f : model.forces) r.layout.forces.push_back(f.name);
+  // The elements the settings leave out get no datasets (an override may name an element
+  // the model lacks: an InputError before any file is written).
+  auto select = [](const std::optional<std::vector<std::string>>& chosen, const std::vector<std::string>& names,
+                   const char* option, const char* kind) {
+    std::vector<bool> flags;
+    if (!chosen) return flags;
+    flags.assign(names.size(), false);
+    std::map<std::string, size_t> index;
+    for (size_t i = 0; i < names.size(); ++i) index.emplace(names[i], i);
+    for (const std::string& name : *chosen) {
+      const auto it = index.find(name);
+      if (it == index.end())
+        throw InputError(std::string("output ") + option + ": the model has no " + kind + " named '" + name + "'");
+      flags[it->second] = true;
+    }
+    return flags;
+  };
+  r.layout.write_bodies = select(settings.output_bodies, r.layout.bodies, "bodies", "body");
+  r.layout.write_joints = select(settings.output_joints, r.layout.joints, "joints", "joint");
+  r.layout.write_forces = select(settings.output_forces, r.layout.forces, "forces", "force");
+  r.layout.write_measures = select(settings.output_measures, r.layout.measures, "measures", "measure");
   // The rows of a complete run (t = 0, then every output_step up to t_end): the chunk size.
   const double intervals = std::ceil(settings.t_end / settings.output_step - 1e-9);
   r.layout.expected_rows =
@@ -474,6 +500,12 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
   file.SetAttribute("t_end", settings.t_end);
   file.SetAttribute("output_step", settings.output_step);
   file.SetAttribute("output_accelerations", settings.output_accelerations);
+  // The elements chosen for datasets, where the settings choose (absent: every one).
+  for (const auto& [key, chosen] : {std::pair{"output_bodies", &settings.output_bodies},
+                                    std::pair{"output_joints", &settings.output_joints},
+                                    std::pair{"output_forces", &settings.output_forces},
+                                    std::pair{"output_measures", &settings.output_measures}})
+    if (*chosen) file.SetAttribute(key, **chosen);
   if (settings.integrator == mbs::IntegratorKind::kHht) {
     file.SetAttribute("hht_alpha", settings.hht_alpha);
     file.SetAttribute("hht_step", settings.hht_step);

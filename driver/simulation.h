@@ -60,6 +60,10 @@ struct SettingsOverrides {
   std::optional<double> erk_rtol, erk_atol;
   std::optional<long> erk_max_steps;
   std::optional<double> erk_min_step, erk_max_step;
+  // --output-bodies, --output-joints, --output-forces, --output-measures: given (the
+  // outer optional) as all (nullopt) or a list of names (SimulationSettings::output_bodies).
+  std::optional<std::optional<std::vector<std::string>>> output_bodies, output_joints, output_forces,
+      output_measures;
 };
 
 // The model's settings with the overrides applied, validated (t_end > 0, 0 < output_step,

@@ -158,6 +158,9 @@ struct ResultsFile::Impl {
   std::vector<RowDataset> efforts;        // one per layout.efforts entry
   std::vector<RowDataset> joint_coordinates;  // 4 per layout.joint_coordinates entry
   std::vector<RowDataset> forces;         // 2 per force
+  // The row entries given datasets (layout.write_* applied): indices into the row's
+  // bodies, measures, joints, efforts, joint coordinates and forces, increasing.
+  std::vector<int> body_rows, measure_rows, joint_rows, effort_rows, joint_coordinate_rows, force_rows;
   RowDataset kinetic, potential, position_violation, velocity_violation;
   std::vector<double> zeros;
   double flush_interval = 0;
@@ -230,6 +233,29 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
     if (std::find(layout.joints.begin(), layout.joints.end(), n) == layout.joints.end())
       throw std::runtime_error("results file: joint coordinate of '" + n + "', which is not a joint");
   for (const auto& n : layout.forces) CheckName(n, "force");
+  auto selected = [&](const std::vector<bool>& flags, size_t count, const char* what) {
+    if (!flags.empty() && flags.size() != count)
+      throw std::runtime_error("results file '" + path + "': " + std::to_string(flags.size()) + " flags for " +
+                               std::to_string(count) + " " + what);
+    std::vector<int> rows;
+    for (size_t i = 0; i < count; ++i)
+      if (flags.empty() || flags[i]) rows.push_back(static_cast<int>(i));
+    return rows;
+  };
+  m.body_rows = selected(layout.write_bodies, layout.bodies.size(), "bodies");
+  m.measure_rows = selected(layout.write_measures, layout.measures.size(), "measures");
+  m.joint_rows = selected(layout.write_joints, layout.joints.size(), "joints");
+  m.force_rows = selected(layout.write_forces, layout.forces.size(), "forces");
+  std::vector<bool> joint_written(layout.joints.size(), false);
+  for (int j : m.joint_rows) joint_written[j] = true;
+  auto written_joint = [&](const std::string& name) {
+    const auto it = std::find(layout.joints.begin(), layout.joints.end(), name);
+    return joint_written[it - layout.joints.begin()];
+  };
+  for (size_t i = 0; i < layout.efforts.size(); ++i)
+    if (written_joint(layout.efforts[i])) m.effort_rows.push_back(static_cast<int>(i));
+  for (size_t i = 0; i < layout.joint_coordinates.size(); ++i)
+    if (written_joint(layout.joint_coordinates[i])) m.joint_coordinate_rows.push_back(static_cast<int>(i));
 
   m.file = Handle(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (!m.file.valid()) throw std::runtime_error("cannot create the results file '" + path + "'");
@@ -246,36 +272,38 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   WriteStrings(f, "lambda_names", layout.lambda_names);
 
   Handle bodies = CreateGroup(f, "bodies");
-  for (const auto& name : layout.bodies) {
-    Handle g = CreateGroup(bodies.get(), name);
+  for (int b : m.body_rows) {
+    Handle g = CreateGroup(bodies.get(), layout.bodies[b]);
     m.body_datasets.push_back(CreateRowDataset(g.get(), "position", 3, false, layout.expected_rows));
     m.body_datasets.push_back(CreateRowDataset(g.get(), "orientation", 4, false, layout.expected_rows));
     m.body_datasets.push_back(CreateRowDataset(g.get(), "velocity", 3, false, layout.expected_rows));
     m.body_datasets.push_back(CreateRowDataset(g.get(), "angular_velocity", 3, false, layout.expected_rows));
   }
   Handle measures = CreateGroup(f, "measures");
-  for (const auto& name : layout.measures)
-    m.measures.push_back(CreateRowDataset(measures.get(), name, 0, true, layout.expected_rows));
+  for (int i : m.measure_rows)
+    m.measures.push_back(CreateRowDataset(measures.get(), layout.measures[i], 0, true, layout.expected_rows));
   Handle joints = CreateGroup(f, "joints");
-  for (const auto& name : layout.joints) {
-    Handle g = CreateGroup(joints.get(), name);
+  for (int j : m.joint_rows) {
+    Handle g = CreateGroup(joints.get(), layout.joints[j]);
     m.joints.push_back(CreateRowDataset(g.get(), "force", 3, false, layout.expected_rows));
     m.joints.push_back(CreateRowDataset(g.get(), "torque", 3, false, layout.expected_rows));
   }
-  for (const auto& name : layout.efforts) {
+  for (int i : m.effort_rows) {
+    const std::string& name = layout.efforts[i];
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
     m.efforts.push_back(CreateRowDataset(g.get(), "effort", 0, true, layout.expected_rows));
   }
-  for (const auto& name : layout.joint_coordinates) {
+  for (int i : m.joint_coordinate_rows) {
+    const std::string& name = layout.joint_coordinates[i];
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
     for (const char* d : {"position", "rate", "acceleration", "generalized_force"})
       m.joint_coordinates.push_back(CreateRowDataset(g.get(), d, 0, true, layout.expected_rows));
   }
   Handle forces = CreateGroup(f, "forces");
-  for (const auto& name : layout.forces) {
-    Handle g = CreateGroup(forces.get(), name);
+  for (int i : m.force_rows) {
+    Handle g = CreateGroup(forces.get(), layout.forces[i]);
     m.forces.push_back(CreateRowDataset(g.get(), "force", 3, false, layout.expected_rows));
     m.forces.push_back(CreateRowDataset(g.get(), "torque", 3, false, layout.expected_rows));
   }
@@ -310,22 +338,31 @@ void ResultsFile::AppendRow(const ResultsRow& row) {
   m.Append(m.a, row.a);
   m.Append(m.lambda, row.lambda);
   static constexpr int kBodyOffsets[4] = {0, 3, 7, 10};
-  for (size_t b = 0; b < m.layout.bodies.size(); ++b)
+  for (size_t i = 0; i < m.body_rows.size(); ++i) {
+    const int b = m.body_rows[i];
     for (int k = 0; k < 4; ++k)
-      m.Append(m.body_datasets[4 * b + k],
+      m.Append(m.body_datasets[4 * i + k],
                row.body_data ? row.body_data + 13 * b + kBodyOffsets[k] : nullptr);
-  for (size_t i = 0; i < m.measures.size(); ++i)
-    m.Append(m.measures[i], row.measures ? row.measures + i : nullptr);
-  for (size_t j = 0; j < m.layout.joints.size(); ++j)
+  }
+  for (size_t i = 0; i < m.measure_rows.size(); ++i)
+    m.Append(m.measures[i], row.measures ? row.measures + m.measure_rows[i] : nullptr);
+  for (size_t i = 0; i < m.joint_rows.size(); ++i) {
+    const int j = m.joint_rows[i];
     for (int k = 0; k < 2; ++k)
-      m.Append(m.joints[2 * j + k], row.joint_data ? row.joint_data + 6 * j + 3 * k : nullptr);
-  for (size_t j = 0; j < m.efforts.size(); ++j)
-    m.Append(m.efforts[j], row.effort_data ? row.effort_data + j : nullptr);
-  for (size_t j = 0; j < m.joint_coordinates.size(); ++j)
-    m.Append(m.joint_coordinates[j], row.joint_coordinate_data ? row.joint_coordinate_data + j : nullptr);
-  for (size_t j = 0; j < m.layout.forces.size(); ++j)
+      m.Append(m.joints[2 * i + k], row.joint_data ? row.joint_data + 6 * j + 3 * k : nullptr);
+  }
+  for (size_t i = 0; i < m.effort_rows.size(); ++i)
+    m.Append(m.efforts[i], row.effort_data ? row.effort_data + m.effort_rows[i] : nullptr);
+  // Four datasets per joint coordinate (position, rate, acceleration, generalized force).
+  for (size_t i = 0; i < m.joint_coordinate_rows.size(); ++i)
+    for (int k = 0; k < 4; ++k)
+      m.Append(m.joint_coordinates[4 * i + k],
+               row.joint_coordinate_data ? row.joint_coordinate_data + 4 * m.joint_coordinate_rows[i] + k : nullptr);
+  for (size_t i = 0; i < m.force_rows.size(); ++i) {
+    const int f = m.force_rows[i];
     for (int k = 0; k < 2; ++k)
-      m.Append(m.forces[2 * j + k], row.force_data ? row.force_data + 6 * j + 3 * k : nullptr);
+      m.Append(m.forces[2 * i + k], row.force_data ? row.force_data + 6 * f + 3 * k : nullptr);
+  }
   m.Append(m.kinetic, &row.kinetic_energy);
   m.Append(m.potential, &row.potential_energy);
   m.Append(m.position_violation, &row.position_violation);

@@ -35,6 +35,14 @@ struct ResultsLayout {
   // the order of ResultsRow::joint_coordinate_data.
   std::vector<std::string> joint_coordinates;
   std::vector<std::string> forces;        // /forces/NAME/{force,torque}
+  // Added: which entries of `bodies`, `measures`, `joints` and `forces` get their
+  // datasets (flags parallel to those lists; an empty vector: all of them). A joint left
+  // out has no /joints/NAME group at all (no force, torque, effort or joint-coordinate
+  // datasets). The rows still carry every element's values (ResultsRow's layout does not
+  // change); /q, /v, /a and /lambda are always written. Each per-element dataset costs
+  // HDF5 object creation, writes and a flush (0.6 to 0.9 ms per body with its joint), so a
+  // large model whose run needs a few of them leaves the others out.
+  std::vector<bool> write_bodies, write_measures, write_joints, write_forces;
   // The rows the run writes if it completes (0: not known). Only the storage depends on
   // it: a dataset's chunks (about 8 KiB, at least 16 rows) hold at most this many rows,
   // so that a short run of a large model does not allocate a full chunk per dataset

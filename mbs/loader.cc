@@ -1583,11 +1583,54 @@ class Loader {
 
   // ---- simulation -------------------------------------------------------------------
 
+  // simulation: {output: {bodies, joints, forces, measures}}: each `all` or a list of
+  // names of elements of that kind, each named once.
+  void LoadOutputSelection(const YAML::Node& node) {
+    const std::string element = "simulation";
+    CheckKeys(node, element, {"bodies", "joints", "forces", "measures"}, "output");
+    SimulationSettings& s = model_.simulation;
+    auto load = [&](const char* key, const char* kind, const std::vector<std::string>& names,
+                    std::optional<std::vector<std::string>>* out) {
+      const YAML::Node n = node[key];
+      if (!n) return;
+      const std::string what = std::string("output ") + key;
+      if (n.IsScalar() && n.Scalar() == "all") {
+        out->reset();
+        return;
+      }
+      if (!n.IsSequence())
+        Fail(n, element, what + " must be 'all' or a list of " + kind + " names, got " + Kind(n));
+      std::vector<std::string> chosen;
+      for (const YAML::Node& item : n) {
+        const std::string name = String(item, element, what);
+        if (std::find(names.begin(), names.end(), name) == names.end())
+          Fail(item, element, what + ": no " + kind + " named '" + name + "'" + Suggest(name, names));
+        if (std::find(chosen.begin(), chosen.end(), name) != chosen.end())
+          Fail(item, element, what + ": " + kind + " '" + name + "' is named twice");
+        chosen.push_back(name);
+      }
+      *out = std::move(chosen);
+    };
+    std::vector<std::string> names;
+    for (const auto& b : model_.bodies) names.push_back(b.name);
+    load("bodies", "body", names, &s.output_bodies);
+    names.clear();
+    for (const auto& j : model_.joints) names.push_back(j.name);
+    load("joints", "joint", names, &s.output_joints);
+    names.clear();
+    for (const auto& f : model_.forces) names.push_back(f.name);
+    load("forces", "force", names, &s.output_forces);
+    names.clear();
+    for (const auto& m : model_.measures) names.push_back(m.name);
+    load("measures", "measure", names, &s.output_measures);
+  }
+
   void LoadSimulation(const YAML::Node& node) {
     if (!node) return;
     const std::string element = "simulation";
     SimulationSettings& s = model_.simulation;
-    CheckKeys(node, element, {"t_end", "output_step", "integrator", "hht", "ida", "erk", "output_accelerations"},
+    CheckKeys(node, element,
+              {"t_end", "output_step", "integrator", "hht", "ida", "erk", "output_accelerations", "output"},
               "simulation");
     auto positive = [&](const YAML::Node& n, const std::string& key) {
       const double x = LoadTimeNumber(n, element, key);
@@ -1609,6 +1652,7 @@ class Loader {
       s.output_accelerations = Enum<std::string>(n, element, "output_accelerations",
                                                  {{"solved", "solved"}, {"integrator", "integrator"}});
     }
+    if (const YAML::Node o = node["output"]) LoadOutputSelection(o);
     if (const YAML::Node h = node["hht"]) {
       CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output",
                     "newton_tolerance", "linear_solver"},

@@ -302,6 +302,12 @@ struct SimulationSettings {
   // [M C_q^T; C_q 0] [a; lambda] = [Q; gamma] at the row's (t, q, v)) or "integrator"
   // (the integrator's own values); docs/model-format.md, "Simulation".
   std::string output_accelerations = "solved";
+  // The elements given datasets in the results file (/bodies/NAME, /joints/NAME,
+  // /forces/NAME, /measures/NAME): every one (nullopt, the default) or the named ones
+  // (an empty list: none). The file's `output: {bodies, joints, forces, measures}`, each
+  // `all` or a list of names; /q, /v, /a and /lambda always hold every coordinate and
+  // multiplier (docs/model-format.md, "Simulation").
+  std::optional<std::vector<std::string>> output_bodies, output_joints, output_forces, output_measures;
 };
 
 struct Model {

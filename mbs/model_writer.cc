@@ -331,6 +331,16 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
                                  : sim.integrator == IntegratorKind::kErk ? "erk"
                                                                           : "kinematic") << "\n";
   s << "  output_accelerations: " << sim.output_accelerations << "\n";
+  if (sim.output_bodies || sim.output_joints || sim.output_forces || sim.output_measures) {
+    s << "  output:\n";
+    for (const auto& [key, names] : {std::pair{"bodies", &sim.output_bodies}, std::pair{"joints", &sim.output_joints},
+                                     std::pair{"forces", &sim.output_forces}, std::pair{"measures", &sim.output_measures}}) {
+      if (!*names) continue;
+      s << "    " << key << ": [";
+      for (size_t i = 0; i < (*names)->size(); ++i) s << (i ? ", " : "") << Quoted((**names)[i]);
+      s << "]\n";
+    }
+  }
   s << "  hht: {alpha: " << Num(sim.hht_alpha) << ", step: " << Num(sim.hht_step)
     << ", adaptive: " << (sim.hht_adaptive ? "true" : "false") << ", tolerance: " << Num(sim.hht_tolerance)
     << ", modified: " << (sim.hht_modified ? "true" : "false") << ", form: " << sim.hht_form

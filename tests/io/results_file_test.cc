@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -344,6 +345,81 @@ TEST(ResultsFile, EmptyLayoutParts) {
   EXPECT_TRUE(ReadStrings(f, "/lambda_names").empty());
   H5Fclose(f);
   std::remove(path.c_str());
+}
+
+// write_* flags: only the chosen elements get datasets, each with its own entries of the
+// row (which still carries every element); a joint left out loses its effort and
+// joint-coordinate datasets too; /q and the rest stay whole.
+TEST(ResultsFile, WritesTheChosenElementsOnly) {
+  const std::string path = TempPath("selection");
+  ResultsLayout layout;
+  layout.q_names = {"b0.x", "b1.x", "b2.x"};
+  layout.bodies = {"b0", "b1", "b2"};
+  layout.measures = {"m0", "m1", "m2"};
+  layout.joints = {"j0", "j1", "j2"};
+  layout.efforts = {"j0", "j2"};
+  layout.joint_coordinates = {"j1", "j2"};
+  layout.forces = {"f0", "f1"};
+  layout.write_bodies = {false, false, true};
+  layout.write_measures = {false, true, false};
+  layout.write_joints = {false, false, true};
+  layout.write_forces = {false, false};
+  const int kRows = 3;
+  auto value = [](int k, double base, int i) { return 1000.0 * k + base + i; };
+  {
+    ResultsFile file(path, layout);
+    for (int k = 0; k < kRows; ++k) {
+      std::vector<double> q(3), body(39), measures(3), joints(18), efforts(2), coords(8), forces(12);
+      for (auto [x, base] : {std::pair{&q, 0.0}, {&body, 100.0}, {&measures, 200.0}, {&joints, 300.0},
+                             {&efforts, 400.0}, {&coords, 500.0}, {&forces, 600.0}})
+        for (size_t i = 0; i < x->size(); ++i) (*x)[i] = value(k, base, static_cast<int>(i));
+      ResultsRow row;
+      row.t = k;
+      row.q = q.data();
+      row.body_data = body.data();
+      row.measures = measures.data();
+      row.joint_data = joints.data();
+      row.effort_data = efforts.data();
+      row.joint_coordinate_data = coords.data();
+      row.force_data = forces.data();
+      file.AppendRow(row);
+    }
+  }
+  hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  for (const char* absent : {"/bodies/b0", "/bodies/b1", "/measures/m0", "/measures/m2", "/joints/j0",
+                             "/joints/j1", "/forces/f0", "/forces/f1"})
+    EXPECT_EQ(H5Lexists(f, absent, H5P_DEFAULT), 0) << absent;
+  std::vector<hsize_t> dims;
+  // (dataset, columns, first entry of the element's values in the row)
+  struct Expect { const char* name; int cols; double first; };
+  const Expect expects[] = {
+      {"/q", 3, 0},
+      {"/bodies/b2/position", 3, 100 + 26},     {"/bodies/b2/orientation", 4, 100 + 29},
+      {"/bodies/b2/velocity", 3, 100 + 33},     {"/bodies/b2/angular_velocity", 3, 100 + 36},
+      {"/measures/m1", 0, 200 + 1},
+      {"/joints/j2/force", 3, 300 + 12},        {"/joints/j2/torque", 3, 300 + 15},
+      {"/joints/j2/effort", 0, 400 + 1},
+      {"/joints/j2/position", 0, 500 + 4},      {"/joints/j2/rate", 0, 500 + 5},
+      {"/joints/j2/acceleration", 0, 500 + 6},  {"/joints/j2/generalized_force", 0, 500 + 7},
+  };
+  for (const auto& e : expects) {
+    auto x = ReadDoubles(f, e.name, &dims);
+    const int width = std::max(1, e.cols);
+    ASSERT_EQ(x.size(), static_cast<size_t>(kRows * width)) << e.name;
+    for (int k = 0; k < kRows; ++k)
+      for (int c = 0; c < width; ++c) EXPECT_EQ(x[k * width + c], value(k, e.first, c)) << e.name;
+  }
+  H5Fclose(f);
+  std::remove(path.c_str());
+
+  layout.write_bodies = {true};  // not one flag per body
+  try {
+    ResultsFile file(path, layout);
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("1 flags for 3 bodies"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ResultsFile, ErrorsNameThePath) {

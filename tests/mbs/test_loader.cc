@@ -240,6 +240,46 @@ TEST(Loader, IdaStepBudgetAndSmallestStep) {
                        "(allowed keys: rtol, atol, max_steps, min_step, dense_output, linear_solver)"));
 }
 
+// simulation: {output: {bodies, joints, forces, measures}}: `all` or lists of names of
+// the model's elements; absent: all; wrong names and shapes refused where they stand.
+TEST(Loader, OutputSelection) {
+  const std::string model =
+      "format: 1\n"
+      "bodies:\n"
+      "  - {name: a, mass: 1, inertia: [1, 1, 1], position: [0, 0, 0], orientation: [1, 0, 0, 0]}\n"
+      "  - {name: b, mass: 1, inertia: [1, 1, 1], position: [1, 0, 0], orientation: [1, 0, 0, 0]}\n"
+      "measures:\n"
+      "  - {name: ax, type: translational, i: a.cm, component: x}\n"
+      "joints:\n"
+      "  - {name: ja, type: spherical, i: a.cm, j: ground.O}\n"
+      "forces:\n"
+      "  - {name: s, type: spring_damper, i: a.cm, j: b.cm, stiffness: 1, damping: 0, free_length: 1}\n"
+      "simulation:\n";
+  Model m = LoadModelFromString(model + "  t_end: 1\n", "m.yaml");
+  EXPECT_FALSE(m.simulation.output_bodies || m.simulation.output_joints || m.simulation.output_forces ||
+               m.simulation.output_measures);
+  m = LoadModelFromString(model + "  output: {bodies: [b, a], joints: [], forces: all, measures: [ax]}\n", "m.yaml");
+  EXPECT_EQ(m.simulation.output_bodies, (std::vector<std::string>{"b", "a"}));
+  EXPECT_EQ(m.simulation.output_joints, std::vector<std::string>{});
+  EXPECT_FALSE(m.simulation.output_forces);
+  EXPECT_EQ(m.simulation.output_measures, std::vector<std::string>{"ax"});
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"{bodies: [a, c]}", "m.yaml:12:24: simulation: output bodies: no body named 'c'"},
+      {"{bodies: [a, a]}", "m.yaml:12:24: simulation: output bodies: body 'a' is named twice"},
+      {"{joints: [a]}", "m.yaml:12:21: simulation: output joints: no joint named 'a'"},
+      {"{forces: [ja]}", "m.yaml:12:21: simulation: output forces: no force named 'ja'"},
+      {"{measures: [s]}", "m.yaml:12:23: simulation: output measures: no measure named 's'"},
+      {"{bodies: a}", "m.yaml:12:20: simulation: output bodies must be 'all' or a list of body names, got 'a'"},
+      {"{bodies: [[a]]}", "m.yaml:12:21: simulation: 'output bodies' must be a name (text), got a list"},
+      {"{body: [a]}", "m.yaml:12:12: simulation: unknown key 'body' (allowed keys: bodies, joints, forces, measures)"},
+      {"[a]", "m.yaml:12:11: simulation: 'output' must be a mapping (key: value), got a list"},
+  };
+  for (const auto& [output, message] : bad) {
+    const std::string error = LoadError(model + "  output: " + output + "\n");
+    EXPECT_EQ(error.find(message), 0u) << output << ": " << error << "\nexpected: " << message;
+  }
+}
+
 TEST(Loader, MinimalModelAndDefaults) {
   const Model m = LoadModelFromString("format: 1\n", "min.yaml");
   EXPECT_EQ(m.markers.size(), 1u);
