@@ -450,7 +450,9 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, gradient.fd_step, gradient.newton_factor, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
+    "erk.rtol, erk.atol, erk.max_steps, erk.min_step, erk.max_step, output.bodies, output.joints, output.forces, "
+    "output.measures, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
 
 }  // namespace
@@ -551,12 +553,38 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.erk_min_step = ParseOptionNumber(key, value);
   } else if (key == "erk.max_step") {
     o.erk_max_step = ParseOptionNumber(key, value);
+  } else if (key == "output.bodies" || key == "output.joints" || key == "output.forces" ||
+             key == "output.measures") {
+    // all, none or comma-separated names (the elements with datasets in the results file).
+    const std::string v = value;
+    std::optional<std::vector<std::string>> chosen;
+    if (v == "none") {
+      chosen.emplace();
+    } else if (v != "all") {
+      chosen.emplace();
+      size_t start = 0;
+      while (true) {
+        const size_t comma = v.find(',', start);
+        const std::string name = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        if (name.empty())
+          throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected all, none or comma-separated names, got '" +
+                                                v + "'");
+        chosen->push_back(name);
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+      }
+    }
+    (key == "output.bodies"   ? o.output_bodies
+     : key == "output.joints" ? o.output_joints
+     : key == "output.forces" ? o.output_forces
+                              : o.output_measures) = chosen;
   } else {
     UnknownOption(key);
   }
   mbs::SimulationSettings settings;
   try {
     settings = driver::ResolveSettings(m.model->simulation, o);
+    driver::CheckOutputSelection(*m.model, settings);
   } catch (const driver::InputError& e) {
     throw ApiError(MBDAE_ERROR_INPUT, std::string("option ") + key + " = " + value + ": " + e.what());
   }
@@ -591,6 +619,17 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "erk.max_steps") return std::to_string(s.erk_max_steps);
   if (key == "erk.min_step") return Num(s.erk_min_step);
   if (key == "erk.max_step") return Num(s.erk_max_step);
+  for (const auto& [name, chosen] : {std::pair{"output.bodies", &s.output_bodies},
+                                     std::pair{"output.joints", &s.output_joints},
+                                     std::pair{"output.forces", &s.output_forces},
+                                     std::pair{"output.measures", &s.output_measures}}) {
+    if (key != name) continue;
+    if (!*chosen) return "all";
+    if ((*chosen)->empty()) return "none";
+    std::string joined;
+    for (const std::string& n : **chosen) joined += (joined.empty() ? "" : ",") + n;
+    return joined;
+  }
   std::string gradient_value;
   if (GetGradientOption(m, key, &gradient_value)) return gradient_value;
   UnknownOption(key);

@@ -439,6 +439,43 @@ std::string SimulationSummary::FullReport() const {
   return s.str();
 }
 
+namespace {
+
+// The layout's write_* flags of the settings' chosen elements (none: every element);
+// throws InputError for a name the layout's lists lack (an override may name one).
+void SetOutputFlags(const mbs::SimulationSettings& settings, io::ResultsLayout* layout) {
+  auto flags = [](const std::optional<std::vector<std::string>>& chosen, const std::vector<std::string>& names,
+                  const char* option, const char* kind) {
+    std::vector<bool> out;
+    if (!chosen) return out;
+    out.assign(names.size(), false);
+    std::map<std::string, size_t> index;
+    for (size_t i = 0; i < names.size(); ++i) index.emplace(names[i], i);
+    for (const std::string& name : *chosen) {
+      const auto it = index.find(name);
+      if (it == index.end())
+        throw InputError(std::string("output ") + option + ": the model has no " + kind + " named '" + name + "'");
+      out[it->second] = true;
+    }
+    return out;
+  };
+  layout->write_bodies = flags(settings.output_bodies, layout->bodies, "bodies", "body");
+  layout->write_joints = flags(settings.output_joints, layout->joints, "joints", "joint");
+  layout->write_forces = flags(settings.output_forces, layout->forces, "forces", "force");
+  layout->write_measures = flags(settings.output_measures, layout->measures, "measures", "measure");
+}
+
+}  // namespace
+
+void CheckOutputSelection(const mbs::Model& model, const mbs::SimulationSettings& settings) {
+  io::ResultsLayout layout;
+  for (const auto& b : model.bodies) layout.bodies.push_back(b.name);
+  for (const auto& m : model.measures) layout.measures.push_back(m.name);
+  for (const auto& j : model.joints) layout.joints.push_back(j.name);
+  for (const auto& f : model.forces) layout.forces.push_back(f.name);
+  SetOutputFlags(settings, &layout);
+}
+
 RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
                            const mbs::SimulationSettings& settings, const std::string& model_path,
                            const std::string& integrator_detail) {
@@ -453,27 +490,7 @@ RunDescription DescribeRun(const mbs::Model& model, const Assembly& asmb,
   } catch (const std::invalid_argument&) {
   }
   for (const auto& f : model.forces) r.layout.forces.push_back(f.name);
-  // The elements the settings leave out get no datasets (an override may name an element
-  // the model lacks: an InputError before any file is written).
-  auto select = [](const std::optional<std::vector<std::string>>& chosen, const std::vector<std::string>& names,
-                   const char* option, const char* kind) {
-    std::vector<bool> flags;
-    if (!chosen) return flags;
-    flags.assign(names.size(), false);
-    std::map<std::string, size_t> index;
-    for (size_t i = 0; i < names.size(); ++i) index.emplace(names[i], i);
-    for (const std::string& name : *chosen) {
-      const auto it = index.find(name);
-      if (it == index.end())
-        throw InputError(std::string("output ") + option + ": the model has no " + kind + " named '" + name + "'");
-      flags[it->second] = true;
-    }
-    return flags;
-  };
-  r.layout.write_bodies = select(settings.output_bodies, r.layout.bodies, "bodies", "body");
-  r.layout.write_joints = select(settings.output_joints, r.layout.joints, "joints", "joint");
-  r.layout.write_forces = select(settings.output_forces, r.layout.forces, "forces", "force");
-  r.layout.write_measures = select(settings.output_measures, r.layout.measures, "measures", "measure");
+  SetOutputFlags(settings, &r.layout);
   // The rows of a complete run (t = 0, then every output_step up to t_end): the chunk size.
   const double intervals = std::ceil(settings.t_end / settings.output_step - 1e-9);
   r.layout.expected_rows =

@@ -73,6 +73,11 @@ struct SettingsOverrides {
 mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_settings,
                                         const SettingsOverrides& overrides);
 
+// Throws InputError when the settings' chosen elements (output_bodies, ...) name an
+// element the model lacks (the model file's are checked when it is read; an override's
+// are not). DescribeRun checks the same.
+void CheckOutputSelection(const mbs::Model& model, const mbs::SimulationSettings& settings);
+
 const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida" | "kinematic" | "erk"
 
 // Degrees of freedom of a system of independent constraint equations (Assembly::

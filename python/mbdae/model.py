@@ -43,7 +43,8 @@ OPTIONS = ("t_end", "output_step", "integrator", "hht.alpha", "hht.step", "hht.a
            "hht.tolerance", "hht.modified", "hht.form", "hht.dense_output", "hht.newton_tolerance",
            "hht.linear_solver", "ida.rtol", "ida.atol",
            "ida.max_steps", "ida.min_step", "ida.dense_output", "ida.linear_solver", "erk.rtol", "erk.atol", "erk.max_steps",
-           "erk.min_step", "erk.max_step", "gradient.fd_step", "gradient.newton_factor",
+           "erk.min_step", "erk.max_step", "output.bodies", "output.joints", "output.forces",
+           "output.measures", "gradient.fd_step", "gradient.newton_factor",
            "gradient.trajectory_memory", "gradient.ida_checkpoint_steps")
 
 _FORMATS = {"csc": _lib.CSC, "csr": _lib.CSR}
@@ -255,7 +256,10 @@ class Options:
     ``m.options["hht.adaptive"] = True``.
 
     Values are given as numbers, booleans or text and read back as float, bool or str.
-    They take effect at the next assembly (set them before solving).
+    They take effect at the next assembly (set them before solving). ``output.bodies``,
+    ``output.joints``, ``output.forces`` and ``output.measures`` (the elements given
+    datasets in the results file, docs/results-file.md "Chosen elements") take ``"all"``
+    or a list of names (``[]``: none) and read back as ``"all"`` or a list.
     """
 
     def __init__(self, model):
@@ -271,7 +275,9 @@ class Options:
             return repr(float(value))
         if isinstance(value, str):
             return value
-        raise TypeError("an option value is a number, a bool or a str, not %s"
+        if isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value):
+            return ",".join(value) if value else "none"
+        raise TypeError("an option value is a number, a bool, a str or a list of str, not %s"
                         % type(value).__name__)
 
     def __setitem__(self, key, value):
@@ -292,6 +298,8 @@ class Options:
 
     def __getitem__(self, key):
         text = self.text(key)
+        if str(key).startswith("output."):
+            return text if text == "all" else [] if text == "none" else text.split(",")
         if text in ("true", "false"):
             return text == "true"
         try:

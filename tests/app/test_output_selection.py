@@ -12,7 +12,9 @@ rocker_angle):
   `convert`; an element the model lacks is refused with the file and line (model file)
   or the option (command line), exit 2 and no results file;
 - `mbdae view` draws a body without /bodies/NAME from its columns of /q: the page's
-  bodies are the whole file's page's.
+  bodies are the whole file's page's;
+- the Python package's options["output.bodies"], ... (lists of names or "all") give the
+  program's file; unknown names are refused.
 """
 import json
 import os
@@ -120,3 +122,35 @@ def test_view_draws_bodies_from_q(tmp_path):
     assert [b["name"] for b in drawn] == ["crank", "coupler", "rocker"]
     assert len(drawn[1]["p"]) == 3 * 11 and len(drawn[1]["q"]) == 4 * 11
     assert drawn == full
+
+
+def test_python_options(tmp_path):
+    """options["output.bodies"] etc.: a list of names or "all", read back alike; the
+    written file as the program's with the same choice; unknown names refused."""
+    import h5py
+    import mbdae
+    with simulate(tmp_path, FOURBAR, "cli.h5", ["--output-bodies", "rocker", "--output-joints", "none"]):
+        pass
+    with mbdae.Model(FOURBAR) as m:
+        assert m.options["output.bodies"] == "all"
+        m.options["output.bodies"] = ["rocker"]
+        m.options["output.joints"] = []
+        assert m.options["output.bodies"] == ["rocker"]
+        assert m.options["output.joints"] == []
+        assert m.options["output.measures"] == "all"
+        for key, value, what in (("output.joints", ["j_crank", "j_none"], "no joint named 'j_none'"),
+                                 ("output.forces", "a,,b", "expected all, none or comma-separated names")):
+            try:
+                m.options[key] = value
+                raise AssertionError("%s = %r accepted" % (key, value))
+            except mbdae.Error as e:
+                assert what in str(e), str(e)
+        assert m.options["output.joints"] == []
+        m.solve()
+        m.write_results(tmp_path / "py.h5")
+    with h5py.File(tmp_path / "py.h5", "r") as f, h5py.File(tmp_path / "cli.h5", "r") as g:
+        assert list(f["bodies"]) == list(g["bodies"]) == ["rocker"]
+        assert list(f["joints"]) == list(g["joints"]) == []
+        assert strings(f.attrs["output_bodies"]) == ["rocker"]
+        assert np.allclose(f["bodies/rocker/position"][()], g["bodies/rocker/position"][()],
+                           rtol=0, atol=1e-12)
