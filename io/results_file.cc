@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cassert>
 #include <chrono>
+#include <map>
 #include <stdexcept>
 #include <utility>
 
@@ -84,35 +85,54 @@ struct RowDataset {
   int rank = 1;
 };
 
-RowDataset CreateRowDataset(hid_t parent, const std::string& name, int cols, bool one_dim,
-                            long expected_rows) {
-  RowDataset d;
-  d.cols = one_dim ? 0 : cols;
-  d.rank = one_dim ? 1 : 2;
-  const int width = std::max(1, d.cols);
-  hsize_t dims[2] = {0, static_cast<hsize_t>(d.cols)};
-  // Unlimited in both dimensions: a fixed zero-width second dimension cannot be chunked.
-  hsize_t max_dims[2] = {H5S_UNLIMITED, H5S_UNLIMITED};
-  // About 8 KiB per chunk, at least 16 rows; at most the rows expected.
-  hsize_t chunk_rows = std::max<hsize_t>(16, 1024 / static_cast<hsize_t>(width));
-  if (expected_rows > 0) chunk_rows = std::min<hsize_t>(chunk_rows, static_cast<hsize_t>(expected_rows));
-  hsize_t chunk[2] = {chunk_rows, static_cast<hsize_t>(width)};
-  Handle space = Check(H5Screate_simple(d.rank, dims, max_dims), H5Sclose, "create a dataspace");
-  Handle plist = Check(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create a property list");
-  Check(H5Pset_chunk(plist.get(), d.rank, chunk), "set the chunk size of " + name);
-  // A chunk cache of 11 slots instead of 521: rows are appended, so a dataset only ever
-  // holds its last chunk or two in the cache, and the default slot table (4 KiB for every
-  // open dataset; all stay open for the run, four per body and two per joint) was a
-  // page-faulting allocation. The cache's size in bytes stays HDF5's default.
-  Handle dapl = Check(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose, "create a property list");
-  Check(H5Pset_chunk_cache(dapl.get(), 11, H5D_CHUNK_CACHE_NBYTES_DEFAULT,
-                           H5D_CHUNK_CACHE_W0_DEFAULT),
-        "set the chunk cache of " + name);
-  d.id = Check(H5Dcreate2(parent, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT,
-                          plist.get(), dapl.get()),
-               H5Dclose, "create dataset " + name);
-  return d;
-}
+// Creates the run's extendible datasets. Their dataspaces and property lists depend only
+// on the rank and the width, so they are made once per (rank, width) and shared: made
+// per dataset they were a tenth of the file's creation (thousands of datasets).
+class RowDatasetMaker {
+ public:
+  explicit RowDatasetMaker(long expected_rows) : expected_rows_(expected_rows) {
+    // A chunk cache of 11 slots instead of 521: rows are appended, so a dataset only
+    // ever holds its last chunk or two in the cache, and the default slot table (4 KiB
+    // for every open dataset; all stay open for the run, four per body and two per
+    // joint) was a page-faulting allocation. The cache's size in bytes stays HDF5's
+    // default.
+    dapl_ = Check(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose, "create a property list");
+    Check(H5Pset_chunk_cache(dapl_.get(), 11, H5D_CHUNK_CACHE_NBYTES_DEFAULT, H5D_CHUNK_CACHE_W0_DEFAULT),
+          "set a chunk cache");
+  }
+
+  RowDataset operator()(hid_t parent, const std::string& name, int cols, bool one_dim) {
+    RowDataset d;
+    d.cols = one_dim ? 0 : cols;
+    d.rank = one_dim ? 1 : 2;
+    Shape& shape = shapes_[{d.rank, d.cols}];
+    if (!shape.space.valid()) {
+      const int width = std::max(1, d.cols);
+      hsize_t dims[2] = {0, static_cast<hsize_t>(d.cols)};
+      // Unlimited in both dimensions: a fixed zero-width second dimension cannot be chunked.
+      hsize_t max_dims[2] = {H5S_UNLIMITED, H5S_UNLIMITED};
+      // About 8 KiB per chunk, at least 16 rows; at most the rows expected.
+      hsize_t chunk_rows = std::max<hsize_t>(16, 1024 / static_cast<hsize_t>(width));
+      if (expected_rows_ > 0) chunk_rows = std::min<hsize_t>(chunk_rows, static_cast<hsize_t>(expected_rows_));
+      hsize_t chunk[2] = {chunk_rows, static_cast<hsize_t>(width)};
+      shape.space = Check(H5Screate_simple(d.rank, dims, max_dims), H5Sclose, "create a dataspace");
+      shape.dcpl = Check(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, "create a property list");
+      Check(H5Pset_chunk(shape.dcpl.get(), d.rank, chunk), "set the chunk size of " + name);
+    }
+    d.id = Check(H5Dcreate2(parent, name.c_str(), H5T_NATIVE_DOUBLE, shape.space.get(), H5P_DEFAULT,
+                            shape.dcpl.get(), dapl_.get()),
+                 H5Dclose, "create dataset " + name);
+    return d;
+  }
+
+ private:
+  struct Shape {
+    Handle space, dcpl;
+  };
+  long expected_rows_;
+  Handle dapl_;
+  std::map<std::pair<int, int>, Shape> shapes_;
+};
 
 void WriteStrings(hid_t parent, const std::string& name, const std::vector<std::string>& values) {
   Handle type = VariableStringType();
@@ -262,57 +282,58 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   const hid_t f = m.file.get();
   const int nq = static_cast<int>(layout.q_names.size());
   const int nc = static_cast<int>(layout.lambda_names.size());
+  RowDatasetMaker make(layout.expected_rows);
 
-  m.time = CreateRowDataset(f, "time", 0, true, layout.expected_rows);
-  m.q = CreateRowDataset(f, "q", nq, false, layout.expected_rows);
-  m.v = CreateRowDataset(f, "v", nq, false, layout.expected_rows);
-  m.a = CreateRowDataset(f, "a", nq, false, layout.expected_rows);
-  m.lambda = CreateRowDataset(f, "lambda", nc, false, layout.expected_rows);
+  m.time = make(f, "time", 0, true);
+  m.q = make(f, "q", nq, false);
+  m.v = make(f, "v", nq, false);
+  m.a = make(f, "a", nq, false);
+  m.lambda = make(f, "lambda", nc, false);
   WriteStrings(f, "q_names", layout.q_names);
   WriteStrings(f, "lambda_names", layout.lambda_names);
 
   Handle bodies = CreateGroup(f, "bodies");
   for (int b : m.body_rows) {
     Handle g = CreateGroup(bodies.get(), layout.bodies[b]);
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "position", 3, false, layout.expected_rows));
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "orientation", 4, false, layout.expected_rows));
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "velocity", 3, false, layout.expected_rows));
-    m.body_datasets.push_back(CreateRowDataset(g.get(), "angular_velocity", 3, false, layout.expected_rows));
+    m.body_datasets.push_back(make(g.get(), "position", 3, false));
+    m.body_datasets.push_back(make(g.get(), "orientation", 4, false));
+    m.body_datasets.push_back(make(g.get(), "velocity", 3, false));
+    m.body_datasets.push_back(make(g.get(), "angular_velocity", 3, false));
   }
   Handle measures = CreateGroup(f, "measures");
   for (int i : m.measure_rows)
-    m.measures.push_back(CreateRowDataset(measures.get(), layout.measures[i], 0, true, layout.expected_rows));
+    m.measures.push_back(make(measures.get(), layout.measures[i], 0, true));
   Handle joints = CreateGroup(f, "joints");
   for (int j : m.joint_rows) {
     Handle g = CreateGroup(joints.get(), layout.joints[j]);
-    m.joints.push_back(CreateRowDataset(g.get(), "force", 3, false, layout.expected_rows));
-    m.joints.push_back(CreateRowDataset(g.get(), "torque", 3, false, layout.expected_rows));
+    m.joints.push_back(make(g.get(), "force", 3, false));
+    m.joints.push_back(make(g.get(), "torque", 3, false));
   }
   for (int i : m.effort_rows) {
     const std::string& name = layout.efforts[i];
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
-    m.efforts.push_back(CreateRowDataset(g.get(), "effort", 0, true, layout.expected_rows));
+    m.efforts.push_back(make(g.get(), "effort", 0, true));
   }
   for (int i : m.joint_coordinate_rows) {
     const std::string& name = layout.joint_coordinates[i];
     Handle g = Check(H5Gopen2(joints.get(), name.c_str(), H5P_DEFAULT), H5Gclose,
                      "open the group of joint " + name);
     for (const char* d : {"position", "rate", "acceleration", "generalized_force"})
-      m.joint_coordinates.push_back(CreateRowDataset(g.get(), d, 0, true, layout.expected_rows));
+      m.joint_coordinates.push_back(make(g.get(), d, 0, true));
   }
   Handle forces = CreateGroup(f, "forces");
   for (int i : m.force_rows) {
     Handle g = CreateGroup(forces.get(), layout.forces[i]);
-    m.forces.push_back(CreateRowDataset(g.get(), "force", 3, false, layout.expected_rows));
-    m.forces.push_back(CreateRowDataset(g.get(), "torque", 3, false, layout.expected_rows));
+    m.forces.push_back(make(g.get(), "force", 3, false));
+    m.forces.push_back(make(g.get(), "torque", 3, false));
   }
   Handle energy = CreateGroup(f, "energy");
-  m.kinetic = CreateRowDataset(energy.get(), "kinetic", 0, true, layout.expected_rows);
-  m.potential = CreateRowDataset(energy.get(), "potential", 0, true, layout.expected_rows);
+  m.kinetic = make(energy.get(), "kinetic", 0, true);
+  m.potential = make(energy.get(), "potential", 0, true);
   Handle violation = CreateGroup(f, "violation");
-  m.position_violation = CreateRowDataset(violation.get(), "position", 0, true, layout.expected_rows);
-  m.velocity_violation = CreateRowDataset(violation.get(), "velocity", 0, true, layout.expected_rows);
+  m.position_violation = make(violation.get(), "position", 0, true);
+  m.velocity_violation = make(violation.get(), "velocity", 0, true);
   SetAttribute("format", 1L);
   Flush();
 }
