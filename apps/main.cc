@@ -279,6 +279,7 @@ int RunSimulate(const CommandLine& cl) {
                                  cl.model_path);
   mbs::Model model = Load(cl);
   mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
+  driver::CheckOutputSelection(model, settings);  // before the assembly's work
   driver::Assembly asmb = driver::Assemble(model);
   driver::CheckIntegrator(*asmb.kept_system, settings);
   if (!cl.quiet) {
@@ -336,6 +337,7 @@ int RunGradient(const CommandLine& cl) {
   }
   mbs::Model model = Load(cl);
   mbs::SimulationSettings settings = driver::ResolveSettings(model.simulation, cl.overrides);
+  driver::CheckOutputSelection(model, settings);
   driver::GradientRequest request;
   request.objectives = cl.objectives;
   request.wrt = cl.wrt;
