@@ -556,23 +556,12 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
   } else if (key == "output.bodies" || key == "output.joints" || key == "output.forces" ||
              key == "output.measures") {
     // all, none or comma-separated names (the elements with datasets in the results file).
-    const std::string v = value;
     std::optional<std::vector<std::string>> chosen;
-    if (v == "none") {
-      chosen.emplace();
-    } else if (v != "all") {
-      chosen.emplace();
-      size_t start = 0;
-      while (true) {
-        const size_t comma = v.find(',', start);
-        const std::string name = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        if (name.empty())
-          throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected all, none or comma-separated names, got '" +
-                                                v + "'");
-        chosen->push_back(name);
-        if (comma == std::string::npos) break;
-        start = comma + 1;
-      }
+    try {
+      chosen = driver::ParseElementChoice(value);
+    } catch (const driver::InputError&) {
+      throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected all, none or comma-separated names, got '" +
+                                            std::string(value) + "'");
     }
     (key == "output.bodies"   ? o.output_bodies
      : key == "output.joints" ? o.output_joints

@@ -131,9 +131,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       if (!grad) throw UsageError("option " + arg + " is only for `gradient`", true);
     };
     // Comma-separated names, each non-empty.
-    auto names = [&](std::optional<std::string> given = std::nullopt) {
+    auto names = [&]() {
       std::vector<std::string> out;
-      const std::string v = given ? *given : value();
+      const std::string v = value();
       size_t start = 0;
       while (true) {
         const size_t comma = v.find(',', start);
@@ -237,12 +237,12 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
                arg == "--output-measures") {
       // all, none or comma-separated names: the elements given datasets in the results file.
       only_simulate();
-      const std::string v = value();
       std::optional<std::vector<std::string>> chosen;
-      if (v == "none")
-        chosen.emplace();
-      else if (v != "all")
-        chosen = names(v);
+      try {
+        chosen = driver::ParseElementChoice(value());
+      } catch (const driver::InputError& e) {
+        throw UsageError(arg + ": " + e.what());
+      }
       auto& o = cl.overrides;
       (arg == "--output-bodies"   ? o.output_bodies
        : arg == "--output-joints" ? o.output_joints

@@ -467,6 +467,21 @@ void SetOutputFlags(const mbs::SimulationSettings& settings, io::ResultsLayout* 
 
 }  // namespace
 
+std::optional<std::vector<std::string>> ParseElementChoice(const std::string& value) {
+  if (value == "all") return std::nullopt;
+  std::vector<std::string> names;
+  if (value == "none") return names;
+  size_t start = 0;
+  while (true) {
+    const size_t comma = value.find(',', start);
+    std::string name = value.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    if (name.empty()) throw InputError("empty name in '" + value + "'");
+    names.push_back(std::move(name));
+    if (comma == std::string::npos) return names;
+    start = comma + 1;
+  }
+}
+
 void CheckOutputSelection(const mbs::Model& model, const mbs::SimulationSettings& settings) {
   io::ResultsLayout layout;
   for (const auto& b : model.bodies) layout.bodies.push_back(b.name);

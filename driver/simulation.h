@@ -77,6 +77,10 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
 // element the model lacks (the model file's are checked when it is read; an override's
 // are not). DescribeRun checks the same.
 void CheckOutputSelection(const mbs::Model& model, const mbs::SimulationSettings& settings);
+// The text of a chosen-elements option (--output-bodies V, options["output.bodies"]):
+// `all` -> nullopt (every element), `none` -> an empty list, else comma-separated
+// names. Throws InputError("empty name in 'V'") for an empty name.
+std::optional<std::vector<std::string>> ParseElementChoice(const std::string& value);
 
 const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida" | "kinematic" | "erk"
 

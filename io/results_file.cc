@@ -246,12 +246,18 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   for (const auto& n : layout.bodies) CheckName(n, "body");
   for (const auto& n : layout.measures) CheckName(n, "measure");
   for (const auto& n : layout.joints) CheckName(n, "joint");
-  for (const auto& n : layout.efforts)
-    if (std::find(layout.joints.begin(), layout.joints.end(), n) == layout.joints.end())
-      throw std::runtime_error("results file: effort of '" + n + "', which is not a joint");
-  for (const auto& n : layout.joint_coordinates)
-    if (std::find(layout.joints.begin(), layout.joints.end(), n) == layout.joints.end())
-      throw std::runtime_error("results file: joint coordinate of '" + n + "', which is not a joint");
+  // Joints by name (efforts and joint coordinates name their joint): one lookup each
+  // instead of a search of the list, which grew as joints x efforts.
+  std::map<std::string, int> joint_index;
+  for (size_t j = 0; j < layout.joints.size(); ++j) joint_index.emplace(layout.joints[j], static_cast<int>(j));
+  auto joint_of = [&](const std::string& n, const char* what) {
+    const auto it = joint_index.find(n);
+    if (it == joint_index.end())
+      throw std::runtime_error(std::string("results file: ") + what + " of '" + n + "', which is not a joint");
+    return it->second;
+  };
+  for (const auto& n : layout.efforts) joint_of(n, "effort");
+  for (const auto& n : layout.joint_coordinates) joint_of(n, "joint coordinate");
   for (const auto& n : layout.forces) CheckName(n, "force");
   auto selected = [&](const std::vector<bool>& flags, size_t count, const char* what) {
     if (!flags.empty() && flags.size() != count)
@@ -268,14 +274,11 @@ ResultsFile::ResultsFile(const std::string& path, const ResultsLayout& layout)
   m.force_rows = selected(layout.write_forces, layout.forces.size(), "forces");
   std::vector<bool> joint_written(layout.joints.size(), false);
   for (int j : m.joint_rows) joint_written[j] = true;
-  auto written_joint = [&](const std::string& name) {
-    const auto it = std::find(layout.joints.begin(), layout.joints.end(), name);
-    return joint_written[it - layout.joints.begin()];
-  };
   for (size_t i = 0; i < layout.efforts.size(); ++i)
-    if (written_joint(layout.efforts[i])) m.effort_rows.push_back(static_cast<int>(i));
+    if (joint_written[joint_of(layout.efforts[i], "effort")]) m.effort_rows.push_back(static_cast<int>(i));
   for (size_t i = 0; i < layout.joint_coordinates.size(); ++i)
-    if (written_joint(layout.joint_coordinates[i])) m.joint_coordinate_rows.push_back(static_cast<int>(i));
+    if (joint_written[joint_of(layout.joint_coordinates[i], "joint coordinate")])
+      m.joint_coordinate_rows.push_back(static_cast<int>(i));
 
   m.file = Handle(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (!m.file.valid()) throw std::runtime_error("cannot create the results file '" + path + "'");

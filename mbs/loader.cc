@@ -1600,13 +1600,14 @@ class Loader {
       }
       if (!n.IsSequence())
         Fail(n, element, what + " must be 'all' or a list of " + kind + " names, got " + Kind(n));
+      const std::set<std::string> known(names.begin(), names.end());
+      std::set<std::string> seen;
       std::vector<std::string> chosen;
       for (const YAML::Node& item : n) {
         const std::string name = String(item, element, what);
-        if (std::find(names.begin(), names.end(), name) == names.end())
+        if (!known.count(name))
           Fail(item, element, what + ": no " + kind + " named '" + name + "'" + Suggest(name, names));
-        if (std::find(chosen.begin(), chosen.end(), name) != chosen.end())
-          Fail(item, element, what + ": " + kind + " '" + name + "' is named twice");
+        if (!seen.insert(name).second) Fail(item, element, what + ": " + kind + " '" + name + "' is named twice");
         chosen.push_back(name);
       }
       *out = std::move(chosen);
