@@ -266,6 +266,7 @@ void AddCounters(const dae::Summary& from, dae::Summary* to) {
   to->newton_noise_stops += from.newton_noise_stops;
   to->klu_fallbacks += from.klu_fallbacks;
   if (!from.linear_solver.empty()) to->linear_solver = from.linear_solver;
+  if (from.jacobian_cost >= 0) to->jacobian_cost = from.jacobian_cost;
 }
 
 // Adds the counters of the current integrator to finished_counters and drops it.
@@ -450,7 +451,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, hht.jacobian_cost, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
     "erk.rtol, erk.atol, erk.max_steps, erk.min_step, erk.max_step, output.bodies, output.joints, output.forces, "
     "output.measures, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
@@ -509,6 +510,16 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.hht_tolerance = ParseOptionNumber(key, value);
   } else if (key == "hht.newton_tolerance") {
     o.hht_newton_tolerance = ParseOptionNumber(key, value);
+  } else if (key == "hht.jacobian_cost") {
+    if (std::string(value) == "auto") {
+      o.hht_jacobian_cost = -1;
+    } else {
+      const double c = ParseOptionNumber(key, value);
+      if (!(c >= 0 && std::isfinite(c)))
+        throw ApiError(MBDAE_ERROR_INPUT, "option hht.jacobian_cost: expected auto or a number >= 0, got '" +
+                                              std::string(value) + "'");
+      o.hht_jacobian_cost = c;
+    }
   } else if (key == "hht.modified") {
     o.hht_modified = ParseOptionBool(key, value);
   } else if (key == "hht.dense_output") {
@@ -593,6 +604,7 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.adaptive") return boolean(s.hht_adaptive);
   if (key == "hht.tolerance") return Num(s.hht_tolerance);
   if (key == "hht.newton_tolerance") return Num(s.hht_newton_tolerance);
+  if (key == "hht.jacobian_cost") return s.hht_jacobian_cost < 0 ? "auto" : Num(s.hht_jacobian_cost);
   if (key == "hht.modified") return boolean(s.hht_modified);
   if (key == "hht.dense_output") return boolean(s.hht_dense_output);
   if (key == "ida.dense_output") return boolean(s.ida_dense_output);

@@ -200,6 +200,13 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--newton-tolerance") {
       only_simulate();
       cl.overrides.hht_newton_tolerance = number();
+    } else if (arg == "--jacobian-cost") {
+      only_simulate();
+      const std::string v = value();
+      const double c = v == "auto" ? -1 : ParseNumber(arg, v);
+      if (v != "auto" && !(c >= 0 && std::isfinite(c)))
+        throw UsageError(arg + ": expected auto or a number >= 0, got '" + v + "'");
+      cl.overrides.hht_jacobian_cost = c;
     } else if (arg == "--adaptive") {
       only_simulate();
       no_value();

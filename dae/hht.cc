@@ -82,6 +82,7 @@ bool HhtOptions::IsValid(std::string* error) const {
   if (!(newton_noise_factor >= 1)) return fail("newton_noise_factor must be >= 1");
   if (!(jacobian_reuse_rate > 0 && jacobian_reuse_rate < 1))
     return fail("jacobian_reuse_rate must be in (0, 1)");
+  if (!std::isfinite(jacobian_cost)) return fail("jacobian_cost must be finite");
   if (max_steps_same_jacobian < 1) return fail("max_steps_same_jacobian must be >= 1");
   for (double h : replay_steps)
     if (!(h > 0) || !std::isfinite(h)) return fail("replay_steps must be positive and finite");
@@ -270,6 +271,9 @@ class HhtIntegrator final : public Integrator {
                                                sys_.pattern(Matrix::kConstraintDq),
                                                kMaxTreeNode, &tree_refusal_);
     if (!tree_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
+    jacobian_cost_ = opt_.jacobian_cost >= 0 ? opt_.jacobian_cost
+                     : tree_                 ? HhtOptions::kTreeJacobianCost
+                                             : 0.0;
 
     const int n = nq_ + nc_;
     for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_})
@@ -296,6 +300,7 @@ class HhtIntegrator final : public Integrator {
     state_ = x0;
     summary_ = Summary();
     summary_.linear_solver = LinearSolverReport();
+    summary_.jacobian_cost = jacobian_cost_;
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
     h_prev_ = 0;
@@ -392,6 +397,7 @@ class HhtIntegrator final : public Integrator {
     state_ = s;
     summary_ = Summary();
     summary_.linear_solver = LinearSolverReport();
+    summary_.jacobian_cost = jacobian_cost_;
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = s.t;
     h_prev_ = hist[HhtHistory::kHPrev];
@@ -810,6 +816,8 @@ class HhtIntegrator final : public Integrator {
     jacobian_fresh_ = true;
     jacobian_h_ = h;
     steps_with_jacobian_ = 0;
+    cycle_steps_ = 0;
+    cycle_iterations_ = 0;
     return 0;
   }
 
@@ -829,6 +837,7 @@ class HhtIntegrator final : public Integrator {
         tree_.reset();
         tree_refusal_ = "the first factorisation's pivots were unusable";
         summary_.linear_solver = LinearSolverReport();
+        if (opt_.jacobian_cost < 0) jacobian_cost_ = summary_.jacobian_cost = 0;  // KLU's rules
       }
     }
     if (!klu_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
@@ -905,6 +914,7 @@ class HhtIntegrator final : public Integrator {
       }
       double prev_norm = 0;
       bool converged = false, diverged = false;
+      int iterations = 0;
       for (int it = 0; it < opt_.max_newton_iterations; ++it) {
         const int rc = Residual(t1, h);
         if (rc < 0) {
@@ -916,6 +926,7 @@ class HhtIntegrator final : public Integrator {
           break;
         }
         ++summary_.newton_iterations;
+        ++iterations;
         for (int i = 0; i < nq_ + nc_; ++i) x_[i] = -res_[i];
         SolveNewton(x_.data());
         for (int i = 0; i < nq_; ++i) an_[i] += x_[i];
@@ -960,6 +971,7 @@ class HhtIntegrator final : public Integrator {
         prev_norm = norm;
       }
       if (converged) {
+        RenewalRule(iterations);
         if (equilibrium_) return StepResult::kOk;
         // F_{n+1} at the converged state for the next step's HHT term.
         const int rc = EvaluateF(t1, qn_.data(), vn_.data(), lamn_.data(), f_.data());
@@ -979,6 +991,21 @@ class HhtIntegrator final : public Integrator {
     message_ = "no convergence in " + std::to_string(opt_.max_newton_iterations) +
                " Newton iterations";
     return StepResult::kNewtonFailure;
+  }
+
+  // The matrix's refresh by cost (HhtOptions::jacobian_cost, c > 0): the k-th step on a
+  // matrix (counting from 1) took n_k iterations; the average cost per step of the matrix
+  // so far is (c + n_1 + ... + n_k) / k, and once n_k reaches it the next steps on the old
+  // matrix would raise it (its convergence only gets slower), so the next step refreshes
+  // the matrix. A renewal argument: the refresh interval that minimises the average cost
+  // ends where the marginal cost meets the average.
+  void RenewalRule(int iterations) {
+    if (!(jacobian_cost_ > 0)) return;
+    ++cycle_steps_;
+    cycle_iterations_ += iterations;
+    if (cycle_steps_ > 1 &&
+        static_cast<double>(iterations) * cycle_steps_ >= jacobian_cost_ + cycle_iterations_)
+      jacobian_valid_ = false;
   }
 
   // Weighted RMS of the local position error estimate (beta - 1/6) h^2 (a_{n+1} - a_n)
@@ -1061,6 +1088,11 @@ class HhtIntegrator final : public Integrator {
   double jacobian_h_ = 0;
   bool jacobian_valid_ = false, jacobian_fresh_ = false, initialized_ = false;
   int steps_with_jacobian_ = 0;
+  // The refresh by cost: HhtOptions::jacobian_cost resolved (0: off); the converged steps
+  // on the current matrix and their Newton iterations.
+  double jacobian_cost_ = 0;
+  int cycle_steps_ = 0;
+  long cycle_iterations_ = 0;
 };
 
 }  // namespace

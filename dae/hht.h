@@ -92,6 +92,14 @@ struct HhtOptions {
   // convergence rate stays below this value.
   double jacobian_reuse_rate = 0.2;
   int max_steps_same_jacobian = 20;
+  // The cost of a fresh Newton matrix (the Jacobians' evaluation and the factorisation) in
+  // Newton iterations (each a residual and a solve); docs/hht.md, "Newton matrix". When
+  // positive, the matrix is also refreshed once it no longer pays: after a step whose
+  // iterations exceed the average cost per step since the last refresh (that cost counted
+  // in), a renewal rule. 0: only the rules above. Negative (default): kTreeJacobianCost
+  // when the tree elimination factorises the matrix, 0 with KLU (whose results are those
+  // of the rules above).
+  double jacobian_cost = -1;
   // Replay: when not empty, the steps taken are exactly these sizes in order (e.g. the
   // accepted steps of an earlier adaptive run), with no error control and no step
   // changes: a Newton failure or a sequence that does not meet an AdvanceTo target (to
@@ -114,6 +122,11 @@ struct HhtOptions {
   double stop_time = std::numeric_limits<double>::infinity();
 
   bool IsValid(std::string* error) const;
+
+  // jacobian_cost's value for the tree elimination: on the ball chains of 10 to 1000 rods
+  // (bench/README.md, "The Newton matrix's refresh") a fresh matrix costs about 3.3
+  // iterations of HHT with the tree.
+  static constexpr double kTreeJacobianCost = 3.0;
 };
 
 // "klu" | "tree"; and the inverse (false for an unknown name).

@@ -47,6 +47,9 @@ struct Summary {
   // to KLU), and how many did.
   std::string linear_solver;
   long klu_fallbacks = 0;
+  // HHT: the cost of a fresh Newton matrix its refresh rule used at the end of the run
+  // (HhtOptions::jacobian_cost resolved; 0: the rate and age rules alone); -1 elsewhere.
+  double jacobian_cost = -1;
   double h_last = 0;         // last step size used
 
   std::string BriefReport() const;

@@ -54,6 +54,7 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   o.modified = s.hht_modified;
   o.dense_output = s.hht_dense_output;
   o.newton_tolerance = s.hht_newton_tolerance;
+  o.jacobian_cost = s.hht_jacobian_cost;
   if (!dae::ParseHhtForm(s.hht_form, &o.form))
     throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
   if (!dae::ParseHhtStart(s.hht_start, &o.start))
@@ -164,6 +165,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_form) s.hht_form = *o.hht_form;
   if (o.hht_start) s.hht_start = *o.hht_start;
   if (o.hht_linear_solver) s.hht_linear_solver = *o.hht_linear_solver;
+  if (o.hht_jacobian_cost) s.hht_jacobian_cost = *o.hht_jacobian_cost;
   if (o.output_accelerations) s.output_accelerations = *o.output_accelerations;
   if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
@@ -549,6 +551,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_dense_output", settings.hht_dense_output ? 1 : 0);
     file.SetAttribute("hht_newton_tolerance", settings.hht_newton_tolerance);
     file.SetAttribute("hht_linear_solver", settings.hht_linear_solver);
+    if (settings.hht_jacobian_cost >= 0) file.SetAttribute("hht_jacobian_cost", settings.hht_jacobian_cost);
   } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
@@ -593,6 +596,8 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
     file.SetAttribute("linear_solver_used", summary.counters.linear_solver);
     file.SetAttribute("klu_fallbacks", summary.counters.klu_fallbacks);
   }
+  if (summary.counters.jacobian_cost >= 0)
+    file.SetAttribute("jacobian_cost_used", summary.counters.jacobian_cost);
   file.SetAttribute("wall_time", summary.wall_time);
   file.SetAttribute("solver_cpu_time", summary.solver_cpu_time);
   file.SetAttribute("max_position_violation", summary.max_position_violation);

@@ -1656,7 +1656,7 @@ class Loader {
     if (const YAML::Node o = node["output"]) LoadOutputSelection(o);
     if (const YAML::Node h = node["hht"]) {
       CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output",
-                    "newton_tolerance", "linear_solver"},
+                    "newton_tolerance", "linear_solver", "jacobian_cost"},
                 "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
@@ -1685,6 +1685,16 @@ class Loader {
       if (const YAML::Node n = h["linear_solver"]) {
         s.hht_linear_solver = Enum<std::string>(n, element, "linear_solver",
                                                 {{"klu", "klu"}, {"tree", "tree"}});
+      }
+      if (const YAML::Node n = h["jacobian_cost"]) {
+        if (n.IsScalar() && n.Scalar() == "auto") {
+          s.hht_jacobian_cost = -1;
+        } else {
+          s.hht_jacobian_cost = LoadTimeNumber(n, element, "jacobian_cost");
+          if (!(s.hht_jacobian_cost >= 0 && std::isfinite(s.hht_jacobian_cost)))
+            Fail(n, element, "hht jacobian_cost must be auto or a number >= 0, got " +
+                                 Num(s.hht_jacobian_cost));
+        }
       }
     }
     if (const YAML::Node i = node["ida"]) {

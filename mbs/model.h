@@ -276,6 +276,11 @@ struct SimulationSettings {
   // "klu" (sparse LU) or "tree" (block elimination along a tree of bodies, KLU where the
   // system is no tree); the file's `hht: {linear_solver}` (docs/hht.md, "Linear solver").
   std::string hht_linear_solver = "klu";
+  // The cost of a fresh Newton matrix in Newton iterations (dae/hht.h
+  // HhtOptions::jacobian_cost; docs/hht.md, "Newton matrix"): the file's
+  // `hht: {jacobian_cost}`, a number >= 0 or `auto` (-1 here: 3 with the tree elimination,
+  // 0 with KLU).
+  double hht_jacobian_cost = -1;
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its
