@@ -690,24 +690,29 @@ def step_flops_section(results):
             sk, st = step(n, k, 0), step(n, k, 1)
             if not (sk and st):
                 continue
-            rows.append("| %d | 1e-%d | %.0f | %.0f | %.2f | %.0f | %.0f | %.0f | %.2f | %.2f | %.2f | %.2f | %.1e |" % (
+            rows.append("| %d | 1e-%d | %.0f | %.0f | %.2f | %.2f | %.3f | %.0f | %.0f | %.0f | %.2f | %.2f | %.2f | %.2f | %.1e |" % (
                 n, k, sk["cpu_time"], st["cpu_time"], st["cpu_time"] / sk["cpu_time"],
+                st["newton_per_step"], st["factor_per_step"],
                 t1["cpu_time"], t2["cpu_time"], t3["cpu_time"], rs["cpu_time"] / t1["cpu_time"],
                 t2["GFLOPs"], st["cpu_time"] / t1["cpu_time"], st["cpu_time"] / rs["cpu_time"],
                 t1["diff_vs_klu"]))
     if rows:
         out += ["", "The block tree elimination (`hht: {linear_solver: tree}`, "
                 "`dae/block_tree_lu.h`) of the same Newton matrix, and the HHT step with it "
-                "(Newton iterations and factorisations per step as with KLU, the states equal "
-                "to round-off). Its flops are counted from the blocks "
+                "(with the tree's default refresh of the Newton matrix by cost, "
+                "`hht: {jacobian_cost: auto}` = 3 iterations, `docs/hht.md` \"Newton matrix\": "
+                "its own iterations and factorisations per step, given here; with "
+                "`jacobian_cost: 0` they are KLU's and the states equal to round-off). Its "
+                "flops are counted from the blocks "
                 "(`BlockTreeLu::factor_flops`: per node of m unknowns and an interface of k "
                 "to its parent, the LU of the m x m block, 2 m^2 k for W and 2 m k^2 for the "
                 "parent's update):", "",
-                "| N | threshold | step, KLU [us] | step, tree [us] | tree / KLU | tree refactor + "
+                "| N | threshold | step, KLU [us] | step, tree [us] | tree / KLU | tree: Newton it. / "
+                "step | tree: factorisations / step | tree refactor + "
                 "solve [us] | tree refactor [us] | tree solve [us] | KLU (refactor + solve) / "
                 "tree's | tree refactor GFLOP/s | step, tree / tree refactor + solve | "
                 "step, tree / KLU refactor + solve | solution vs KLU (rel.) |",
-                "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"] + rows
+                "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"] + rows
     g = get("BM_DenseGemm", 256)
     if g:
         rate = g["GFLOPs"]

@@ -1,0 +1,101 @@
+#!/usr/bin/env python3
+"""HHT's refresh of the Newton matrix by cost (`hht: {jacobian_cost}`) on the ball chains.
+
+    /usr/bin/python3 bench/jacobian_cost.py --mbdae BUILD/mbdae [--repeats 3] [--n 10 100 1000]
+
+For every chain (`bench/scenes/ball_chain.py`, 1 s), HHT fixed step h = 1e-3 and 2.5e-4
+(N = 1000: 1e-3 only) and every setting -- the tree elimination with `--jacobian-cost`
+0 (the rate and age rules alone), 2, 3 (auto, the tree's default) and 4, and KLU with 0
+(its default) and 5 -- one `mbdae simulate` run, repeated `--repeats` times, the runs
+shuffled in every repeat. Reported: the tip error at t = 1 s against the peers
+benchmark's reference (`bench/results/peers/reference_chainN.json`), Newton iterations
+and factorisations per step, the work per step in iterations (iterations + c x
+factorisations with c = 3 for the tree, 5 for KLU: what the cost measures), the solver's
+CPU time (median over the repeats) and its ratio to cost 0 with the same solver. Writes
+`bench/results/jacobian_cost.md` and `.json`. The tests do not run it.
+"""
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import chain_runs  # noqa: E402
+
+ROOT = chain_runs.ROOT
+STEPS = {10: (1e-3, 2.5e-4), 100: (1e-3, 2.5e-4), 1000: (1e-3,)}
+SETTINGS = [("tree", 0), ("tree", 2), ("tree", 3), ("tree", 4), ("klu", 0), ("klu", 5)]
+WORK_COST = {"tree": 3, "klu": 5}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--n", type=int, nargs="+", default=sorted(STEPS))
+    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
+    a = ap.parse_args()
+    refs = chain_runs.references(a.n)
+    runs_of = [(n, h, solver, cost) for n in a.n for h in STEPS[n] for solver, cost in SETTINGS]
+    load_before = os.getloadavg()[0]
+
+    def one(model, s, out):
+        n, h, solver, cost = s
+        return chain_runs.simulate(a.mbdae, model, n, [
+            "--integrator", "hht", "--fixed-step", "--step", repr(h), "--linear-solver", solver,
+            "--jacobian-cost", str(cost)], out, ("linear_solver_used", "jacobian_cost_used"))
+
+    runs = chain_runs.run_shuffled(a.n, runs_of, a.repeats, one,
+                                   lambda s: "N = %d, h = %g, %s, cost %g" % s)
+    rows = []
+    for s in runs_of:
+        n, h, solver, cost = s
+        ok = [r for r in runs[s] if r["status"] == "done"]
+        row = {"n": n, "h": h, "solver": solver, "jacobian_cost": cost, "runs": len(runs[s]),
+               "done": len(ok)}
+        if ok:
+            r0 = ok[0]
+            row.update(error=math.dist(r0["tip"], refs[n]), steps=r0["steps"], newton=r0["newton"],
+                       factorizations=r0["factorizations"], used=r0["linear_solver_used"],
+                       cost_used=r0["jacobian_cost_used"],
+                       solver_time=statistics.median(r["solver_time"] for r in ok),
+                       solver_times=[r["solver_time"] for r in ok])
+        rows.append(row)
+    out = {"command": " ".join(["bench/jacobian_cost.py"] + sys.argv[1:]),
+           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+           "load_before": load_before, "load_after": os.getloadavg()[0], "rows": rows}
+    with open(os.path.join(a.results, "jacobian_cost.json"), "w") as f:
+        json.dump(out, f, indent=1)
+    lines = ["# HHT's refresh of the Newton matrix by cost on the ball chains", "",
+             "`/usr/bin/python3 bench/jacobian_cost.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
+             "average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = -0.1, "
+             "equilibrium form, modified), Newton threshold 1e-12; cost: `--jacobian-cost` (0: the "
+             "rate and age rules alone; 3 is the tree's default, 0 KLU's); work: iterations + c x "
+             "factorisations per step with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
+             "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
+             "the repeats; ratio: against cost 0 with the same solver."
+             % (a.repeats, out["date"], load_before, out["load_after"]), "",
+             "| N | h | solver | cost | tip error [m] | steps | iterations / step "
+             "| factorisations / step | work / step | solver CPU [s] | ratio |",
+             "| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    base = {(r["n"], r["h"], r["solver"]): r for r in rows if r["jacobian_cost"] == 0 and "solver_time" in r}
+    for r in rows:
+        if "solver_time" not in r:
+            lines.append("| %d | %g | %s | %g | failed | | | | | | |" % (r["n"], r["h"], r["solver"], r["jacobian_cost"]))
+            continue
+        b = base.get((r["n"], r["h"], r["solver"]))
+        it, fa = r["newton"] / r["steps"], r["factorizations"] / r["steps"]
+        lines.append("| %d | %g | %s | %g | %.4g | %d | %.2f | %.3f | %.2f | %.3g | %s |" % (
+            r["n"], r["h"], r["used"], r["jacobian_cost"], r["error"], r["steps"], it, fa,
+            it + WORK_COST[r["solver"]] * fa, r["solver_time"],
+            "%.2f" % (r["solver_time"] / b["solver_time"]) if b else ""))
+    with open(os.path.join(a.results, "jacobian_cost.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
