@@ -1,13 +1,19 @@
 """Shared by the whole-run benchmarks on issue 12's ball chains (bench/newton_tolerance.py,
-bench/linear_solver.py): the chains' references, the chain models, `mbdae simulate` runs of
-a list of settings repeated with the order shuffled in every repeat (so that the runs of
-one setting spread over the invocation), and what a run's results file says."""
+bench/linear_solver.py, bench/jacobian_cost.py): their command line, the chains'
+references, the chain models, `mbdae simulate` runs of a list of settings repeated with the
+order shuffled in every repeat (so that the runs of one setting spread over the
+invocation), what a run's results file says, a setting's summary over its repeats and the
+written results."""
+import argparse
 import json
+import math
 import os
 import random
+import statistics
 import subprocess
 import sys
 import tempfile
+import time
 
 import h5py
 
@@ -68,3 +74,45 @@ def run_shuffled(ns, settings, repeats, run_one, describe):
                                              "%.3f s" % r["solver_time"] if "solver_time" in r else r["status"]),
                       flush=True)
     return runs
+
+
+def parse_args(doc, ns):
+    """The benchmarks' command line (description: doc's first line): --mbdae (default
+    build/mbdae), --repeats (3), --n (default ns), --results (bench/results)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--n", type=int, nargs="+", default=sorted(ns))
+    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
+    return ap.parse_args()
+
+
+def summary(runs, ref, attrs=()):
+    """A setting's runs (simulate's dicts) summarised: runs, done and, if any is done, the
+    first done run's tip error against ref, steps, rejected steps, Newton iterations,
+    factorisations and `attrs`, the median solver time and whether every done run ended
+    on the same tip."""
+    ok = [r for r in runs if r["status"] == "done"]
+    row = {"runs": len(runs), "done": len(ok)}
+    if ok:
+        r0 = ok[0]
+        row.update(error=math.dist(r0["tip"], ref), steps=r0["steps"], rejected=r0["rejected"],
+                   newton=r0["newton"], factorizations=r0["factorizations"],
+                   solver_time=statistics.median(r["solver_time"] for r in ok),
+                   same_result=all(r["tip"] == r0["tip"] for r in ok))
+        row.update({k: r0[k] for k in attrs})
+    return row
+
+
+def write(results, name, load_before, rows, make_lines):
+    """results/NAME.json (the command, date, loads and rows) and results/NAME.md, the lines
+    make_lines(that json's dict) gives, printed too."""
+    out = {"command": " ".join(["bench/%s.py" % name] + sys.argv[1:]),
+           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+           "load_before": load_before, "load_after": os.getloadavg()[0], "rows": rows}
+    with open(os.path.join(results, name + ".json"), "w") as f:
+        json.dump(out, f, indent=1)
+    text = "\n".join(make_lines(out))
+    with open(os.path.join(results, name + ".md"), "w") as f:
+        f.write(text + "\n")
+    print(text)

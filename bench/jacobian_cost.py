@@ -14,30 +14,19 @@ factorisations with c = 3 for the tree, 5 for KLU: what the cost measures), the 
 CPU time (median over the repeats) and its ratio to cost 0 with the same solver. Writes
 `bench/results/jacobian_cost.md` and `.json`. The tests do not run it.
 """
-import argparse
-import json
-import math
 import os
-import statistics
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import chain_runs  # noqa: E402
 
-ROOT = chain_runs.ROOT
 STEPS = {10: (1e-3, 2.5e-4), 100: (1e-3, 2.5e-4), 1000: (1e-3,)}
 SETTINGS = [("tree", 0), ("tree", 2), ("tree", 3), ("tree", 4), ("klu", 0), ("klu", 5)]
 WORK_COST = {"tree": 3, "klu": 5}
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--n", type=int, nargs="+", default=sorted(STEPS))
-    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
-    a = ap.parse_args()
+    a = chain_runs.parse_args(__doc__, STEPS)
     refs = chain_runs.references(a.n)
     runs_of = [(n, h, solver, cost) for n in a.n for h in STEPS[n] for solver, cost in SETTINGS]
     load_before = os.getloadavg()[0]
@@ -53,48 +42,38 @@ def main():
     rows = []
     for s in runs_of:
         n, h, solver, cost = s
-        ok = [r for r in runs[s] if r["status"] == "done"]
-        row = {"n": n, "h": h, "solver": solver, "jacobian_cost": cost, "runs": len(runs[s]),
-               "done": len(ok)}
-        if ok:
-            r0 = ok[0]
-            row.update(error=math.dist(r0["tip"], refs[n]), steps=r0["steps"], newton=r0["newton"],
-                       factorizations=r0["factorizations"], used=r0["linear_solver_used"],
-                       cost_used=r0["jacobian_cost_used"],
-                       solver_time=statistics.median(r["solver_time"] for r in ok),
-                       solver_times=[r["solver_time"] for r in ok])
+        row = {"n": n, "h": h, "solver": solver, "jacobian_cost": cost}
+        row.update(chain_runs.summary(runs[s], refs[n], ("linear_solver_used", "jacobian_cost_used")))
+        row["solver_times"] = [r["solver_time"] for r in runs[s] if r["status"] == "done"]
         rows.append(row)
-    out = {"command": " ".join(["bench/jacobian_cost.py"] + sys.argv[1:]),
-           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-           "load_before": load_before, "load_after": os.getloadavg()[0], "rows": rows}
-    with open(os.path.join(a.results, "jacobian_cost.json"), "w") as f:
-        json.dump(out, f, indent=1)
-    lines = ["# HHT's refresh of the Newton matrix by cost on the ball chains", "",
-             "`/usr/bin/python3 bench/jacobian_cost.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
-             "average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = -0.1, "
-             "equilibrium form, modified), Newton threshold 1e-12; cost: `--jacobian-cost` (0: the "
-             "rate and age rules alone; 3 is the tree's default, 0 KLU's); work: iterations + c x "
-             "factorisations per step with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
-             "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
-             "the repeats; ratio: against cost 0 with the same solver."
-             % (a.repeats, out["date"], load_before, out["load_after"]), "",
-             "| N | h | solver | cost | tip error [m] | steps | iterations / step "
-             "| factorisations / step | work / step | solver CPU [s] | ratio |",
-             "| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    base = {(r["n"], r["h"], r["solver"]): r for r in rows if r["jacobian_cost"] == 0 and "solver_time" in r}
-    for r in rows:
-        if "solver_time" not in r:
-            lines.append("| %d | %g | %s | %g | failed | | | | | | |" % (r["n"], r["h"], r["solver"], r["jacobian_cost"]))
-            continue
-        b = base.get((r["n"], r["h"], r["solver"]))
-        it, fa = r["newton"] / r["steps"], r["factorizations"] / r["steps"]
-        lines.append("| %d | %g | %s | %g | %.4g | %d | %.2f | %.3f | %.2f | %.3g | %s |" % (
-            r["n"], r["h"], r["used"], r["jacobian_cost"], r["error"], r["steps"], it, fa,
-            it + WORK_COST[r["solver"]] * fa, r["solver_time"],
-            "%.2f" % (r["solver_time"] / b["solver_time"]) if b else ""))
-    with open(os.path.join(a.results, "jacobian_cost.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+
+    def lines_of(out):
+        lines = ["# HHT's refresh of the Newton matrix by cost on the ball chains", "",
+                 "`/usr/bin/python3 bench/jacobian_cost.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
+                 "average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = -0.1, "
+                 "equilibrium form, modified), Newton threshold 1e-12; cost: `--jacobian-cost` (0: the "
+                 "rate and age rules alone; 3 is the tree's default, 0 KLU's); work: iterations + c x "
+                 "factorisations per step with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
+                 "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
+                 "the repeats; ratio: against cost 0 with the same solver."
+                 % (a.repeats, out["date"], load_before, out["load_after"]), "",
+                 "| N | h | solver | cost | tip error [m] | steps | iterations / step "
+                 "| factorisations / step | work / step | solver CPU [s] | ratio |",
+                 "| ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+        base = {(r["n"], r["h"], r["solver"]): r for r in rows if r["jacobian_cost"] == 0 and "solver_time" in r}
+        for r in rows:
+            if "solver_time" not in r:
+                lines.append("| %d | %g | %s | %g | failed | | | | | | |" % (r["n"], r["h"], r["solver"], r["jacobian_cost"]))
+                continue
+            b = base.get((r["n"], r["h"], r["solver"]))
+            it, fa = r["newton"] / r["steps"], r["factorizations"] / r["steps"]
+            lines.append("| %d | %g | %s | %g | %.4g | %d | %.2f | %.3f | %.2f | %.3g | %s |" % (
+                r["n"], r["h"], r["linear_solver_used"], r["jacobian_cost"], r["error"], r["steps"], it, fa,
+                it + WORK_COST[r["solver"]] * fa, r["solver_time"],
+                "%.2f" % (r["solver_time"] / b["solver_time"]) if b else ""))
+        return lines
+
+    chain_runs.write(a.results, "jacobian_cost", load_before, rows, lines_of)
 
 
 if __name__ == "__main__":

@@ -13,18 +13,11 @@ steps, Newton iterations, factorisations, the solver CPU time (median over the r
 and its ratio tree / klu, and the linear solver that ran. Writes
 `bench/results/linear_solver.md` and `.json`. The tests do not run it.
 """
-import argparse
-import json
-import math
 import os
-import statistics
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import chain_runs  # noqa: E402
-
-ROOT = chain_runs.ROOT
 
 SETTINGS = {
     10: [("hht", 1e-3), ("hht", 2.5e-4), ("ida", 1e-6), ("ida", 1e-8)],
@@ -41,12 +34,7 @@ def options(integrator, value, solver):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--n", type=int, nargs="+", default=sorted(SETTINGS))
-    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
-    a = ap.parse_args()
+    a = chain_runs.parse_args(__doc__, SETTINGS)
     refs = chain_runs.references(a.n)
     runs_of = [(n, integ, value, solver) for n in a.n for integ, value in SETTINGS[n] for solver in SOLVERS]
     load_before = os.getloadavg()[0]
@@ -58,47 +46,39 @@ def main():
     rows = []
     for s in runs_of:
         n, integ, value, solver = s
-        ok = [r for r in runs[s] if r["status"] == "done"]
-        row = {"n": n, "integrator": integ, "setting": value, "solver": solver, "runs": len(runs[s]),
-               "done": len(ok)}
-        if ok:
-            r0 = ok[0]
-            row.update(error=math.dist(r0["tip"], refs[n]), steps=r0["steps"], newton=r0["newton"],
-                       factorizations=r0["factorizations"], used=r0["linear_solver_used"],
-                       fallbacks=r0["klu_fallbacks"],
-                       solver_time=statistics.median(r["solver_time"] for r in ok),
-                       same_result=all(r["tip"] == r0["tip"] for r in ok))
+        row = {"n": n, "integrator": integ, "setting": value, "solver": solver}
+        row.update(chain_runs.summary(runs[s], refs[n], ("linear_solver_used", "klu_fallbacks")))
+        if "linear_solver_used" in row:
+            row["used"] = row.pop("linear_solver_used")
+            row["fallbacks"] = row.pop("klu_fallbacks")
         rows.append(row)
-    out = {"command": " ".join(["bench/linear_solver.py"] + sys.argv[1:]),
-           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-           "load_before": load_before, "load_after": os.getloadavg()[0], "rows": rows}
-    with open(os.path.join(a.results, "linear_solver.json"), "w") as f:
-        json.dump(out, f, indent=1)
-    lines = ["# The linear solvers of HHT and IDA on the ball chains", "",
-             "`/usr/bin/python3 bench/linear_solver.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
-             "average %.1f before and %.1f after. 1 s of each chain; HHT fixed step (alpha = -0.1, "
-             "equilibrium form, modified), IDA rtol = atol; error: the tip at t = 1 s against "
-             "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
-             "the repeats; ratio: tree / klu of the same setting."
-             % (a.repeats, out["date"], load_before, out["load_after"]), "",
-             "| N | integrator | setting | solver | ran | tip error [m] | steps | Newton iterations "
-             "| factorisations | solver CPU [s] | tree / klu |",
-             "| ---: | --- | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    klu = {(r["n"], r["integrator"], r["setting"]): r for r in rows
-           if r["solver"] == "klu" and "solver_time" in r}
-    for r in rows:
-        what = "h = %g" % r["setting"] if r["integrator"] == "hht" else "rtol %g" % r["setting"]
-        if "solver_time" not in r:
-            lines.append("| %d | %s | %s | %s | failed | | | | | | |" % (r["n"], r["integrator"], what, r["solver"]))
-            continue
-        k = klu.get((r["n"], r["integrator"], r["setting"]))
-        ratio = "%.2f" % (r["solver_time"] / k["solver_time"]) if k and r["solver"] == "tree" else ""
-        lines.append("| %d | %s | %s | %s | %s | %.3g | %d | %d | %d | %.3g | %s |" % (
-            r["n"], r["integrator"], what, r["solver"], r["used"], r["error"], r["steps"], r["newton"],
-            r["factorizations"], r["solver_time"], ratio))
-    with open(os.path.join(a.results, "linear_solver.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+
+    def lines_of(out):
+        lines = ["# The linear solvers of HHT and IDA on the ball chains", "",
+                 "`/usr/bin/python3 bench/linear_solver.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
+                 "average %.1f before and %.1f after. 1 s of each chain; HHT fixed step (alpha = -0.1, "
+                 "equilibrium form, modified), IDA rtol = atol; error: the tip at t = 1 s against "
+                 "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
+                 "the repeats; ratio: tree / klu of the same setting."
+                 % (a.repeats, out["date"], load_before, out["load_after"]), "",
+                 "| N | integrator | setting | solver | ran | tip error [m] | steps | Newton iterations "
+                 "| factorisations | solver CPU [s] | tree / klu |",
+                 "| ---: | --- | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+        klu = {(r["n"], r["integrator"], r["setting"]): r for r in rows
+               if r["solver"] == "klu" and "solver_time" in r}
+        for r in rows:
+            what = "h = %g" % r["setting"] if r["integrator"] == "hht" else "rtol %g" % r["setting"]
+            if "solver_time" not in r:
+                lines.append("| %d | %s | %s | %s | failed | | | | | | |" % (r["n"], r["integrator"], what, r["solver"]))
+                continue
+            k = klu.get((r["n"], r["integrator"], r["setting"]))
+            ratio = "%.2f" % (r["solver_time"] / k["solver_time"]) if k and r["solver"] == "tree" else ""
+            lines.append("| %d | %s | %s | %s | %s | %.3g | %d | %d | %d | %.3g | %s |" % (
+                r["n"], r["integrator"], what, r["solver"], r["used"], r["error"], r["steps"], r["newton"],
+                r["factorizations"], r["solver_time"], ratio))
+        return lines
+
+    chain_runs.write(a.results, "linear_solver", load_before, rows, lines_of)
 
 
 if __name__ == "__main__":

@@ -12,30 +12,18 @@ accuracy 1e-12, 1e-11, 1e-9, checked there against RK-Feldberg and IDA), the New
 iterations, factorisations and the solver CPU time (median over the repeats). Writes
 `bench/results/newton_tolerance.md` and `.json`. The tests do not run it.
 """
-import argparse
-import json
-import math
 import os
-import statistics
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import chain_runs  # noqa: E402
-
-ROOT = chain_runs.ROOT
 
 TOLERANCES = (1e-12, 1e-11, 1e-10, 1e-9, 1e-8)
 STEPS = {10: (1e-3, 2.5e-4), 100: (1e-3, 2.5e-4), 1000: (1e-3,)}
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--n", type=int, nargs="+", default=sorted(STEPS))
-    ap.add_argument("--results", default=os.path.join(ROOT, "bench", "results"))
-    a = ap.parse_args()
+    a = chain_runs.parse_args(__doc__, STEPS)
     refs = chain_runs.references(a.n)
     settings = [(n, h, tol) for n in a.n for h in STEPS[n] for tol in TOLERANCES]
     load_before = os.getloadavg()[0]
@@ -48,44 +36,34 @@ def main():
     rows = []
     for s in settings:
         n, h, tol = s
-        rs = runs[s]
-        ok = [r for r in rs if r["status"] == "done"]
-        row = {"n": n, "h": h, "newton_tolerance": tol, "runs": len(rs), "done": len(ok)}
-        if ok:
-            r0 = ok[0]
-            row.update(error=math.dist(r0["tip"], refs[n]), newton=r0["newton"],
-                       factorizations=r0["factorizations"], steps=r0["steps"], rejected=r0["rejected"],
-                       solver_time=statistics.median(r["solver_time"] for r in ok),
-                       same_result=all(r["tip"] == r0["tip"] for r in ok))
+        row = {"n": n, "h": h, "newton_tolerance": tol}
+        row.update(chain_runs.summary(runs[s], refs[n]))
         rows.append(row)
-    out = {"command": " ".join(["bench/newton_tolerance.py"] + [x for x in sys.argv[1:]]),
-           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-           "load_before": load_before, "load_after": os.getloadavg()[0], "rows": rows}
-    with open(os.path.join(a.results, "newton_tolerance.json"), "w") as f:
-        json.dump(out, f, indent=1)
-    lines = ["# HHT's Newton threshold on the ball chains", "",
-             "`/usr/bin/python3 bench/newton_tolerance.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
-             "average %.1f before and %.1f after. Fixed-step HHT (alpha = -0.1, equilibrium form, "
-             "modified), 1 s; error: the tip at t = 1 s against `bench/results/peers/reference_chainN.json`; "
-             "time: the solver's CPU time, median of the repeats (the other numbers are the same in "
-             "every repeat); time ratio: against the default threshold 1e-12 of the same N and h."
-             % (a.repeats, out["date"], load_before, out["load_after"]), "",
-             "| N | h | newton_tolerance | tip error [m] | error / default's | Newton iterations / step "
-             "| factorisations / step | solver CPU [s] | time / default's |",
-             "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    base = {(r["n"], r["h"]): r for r in rows if r["newton_tolerance"] == 1e-12 and "error" in r}
-    for r in rows:
-        if "error" not in r:
-            lines.append("| %d | %g | %g | failed | | | | | |" % (r["n"], r["h"], r["newton_tolerance"]))
-            continue
-        b = base.get((r["n"], r["h"]))
-        lines.append("| %d | %g | %g | %.4g | %.3f | %.2f | %.3f | %.3g | %.2f |" % (
-            r["n"], r["h"], r["newton_tolerance"], r["error"], r["error"] / b["error"] if b else float("nan"),
-            r["newton"] / r["steps"], r["factorizations"] / r["steps"], r["solver_time"],
-            r["solver_time"] / b["solver_time"] if b else float("nan")))
-    with open(os.path.join(a.results, "newton_tolerance.md"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+
+    def lines_of(out):
+        lines = ["# HHT's Newton threshold on the ball chains", "",
+                 "`/usr/bin/python3 bench/newton_tolerance.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
+                 "average %.1f before and %.1f after. Fixed-step HHT (alpha = -0.1, equilibrium form, "
+                 "modified), 1 s; error: the tip at t = 1 s against `bench/results/peers/reference_chainN.json`; "
+                 "time: the solver's CPU time, median of the repeats (the other numbers are the same in "
+                 "every repeat); time ratio: against the default threshold 1e-12 of the same N and h."
+                 % (a.repeats, out["date"], load_before, out["load_after"]), "",
+                 "| N | h | newton_tolerance | tip error [m] | error / default's | Newton iterations / step "
+                 "| factorisations / step | solver CPU [s] | time / default's |",
+                 "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+        base = {(r["n"], r["h"]): r for r in rows if r["newton_tolerance"] == 1e-12 and "error" in r}
+        for r in rows:
+            if "error" not in r:
+                lines.append("| %d | %g | %g | failed | | | | | |" % (r["n"], r["h"], r["newton_tolerance"]))
+                continue
+            b = base.get((r["n"], r["h"]))
+            lines.append("| %d | %g | %g | %.4g | %.3f | %.2f | %.3f | %.3g | %.2f |" % (
+                r["n"], r["h"], r["newton_tolerance"], r["error"], r["error"] / b["error"] if b else float("nan"),
+                r["newton"] / r["steps"], r["factorizations"] / r["steps"], r["solver_time"],
+                r["solver_time"] / b["solver_time"] if b else float("nan")))
+        return lines
+
+    chain_runs.write(a.results, "newton_tolerance", load_before, rows, lines_of)
 
 
 if __name__ == "__main__":
