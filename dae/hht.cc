@@ -181,7 +181,8 @@ HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& opt
 }
 
 int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double* v,
-                              const double* a, const double* lambda, double* values) {
+                              const double* a, const double* lambda, double* values,
+                              double* force, double* constraint) {
   EvalInput in;
   in.t = t;
   in.q = q;
@@ -189,6 +190,8 @@ int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double*
   in.a = a;
   in.w = lambda;
   EvalOutput out;
+  out.force = force;
+  out.constraint = constraint;
   for (int m = 0; m < kNumMatrices; ++m)
     if (m != static_cast<int>(Matrix::kConstraintVelDq)) out.matrix[m] = mat_[m].data();
   const int rc = system_.Evaluate(in, out);
@@ -698,6 +701,7 @@ class HhtIntegrator final : public Integrator {
   // Newmark acts on a (kNegrut) or on abar (kEquilibrium); abar_new_ and wbar_new_
   // receive abar_{n+1} and the groups' omegabar'_{n+1}.
   void Kinematics(double h) {
+    evaluated_ = false;  // qn_, vn_ change
     const std::vector<double>& q0 = state_.q;
     const std::vector<double>& v0 = state_.v;
     for (int i = 0; i < nq_; ++i)
@@ -768,32 +772,40 @@ class HhtIntegrator final : public Integrator {
     }
   }
 
-  // Residual at the current iterate (an_, lamn_); fills res_, f_ (F_{n+1}).
+  // Residual at the current iterate (an_, lamn_); fills res_, f_ (F_{n+1}). Right after a
+  // refresh of the Newton matrix at this iterate (evaluated_) the refresh's evaluation
+  // gives Q, C, M and C_q (the same values: the system computes each output alike whatever
+  // else is asked), else the system is evaluated here.
   int Residual(double t1, double h) {
-    EvalInput in;
-    in.t = t1;
-    in.q = qn_.data();
-    in.v = vn_.data();
-    EvalOutput out;
-    out.force = force_.data();
-    out.constraint = con_.data();
-    out[Matrix::kMass] = mat_[static_cast<int>(Matrix::kMass)].data();
-    out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
-    const int rc = sys_.Evaluate(in, out);
+    const double* mass = mat_[static_cast<int>(Matrix::kMass)].data();
+    const double* cq = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
     ++summary_.residual_evaluations;
-    if (rc != 0) return rc;
+    if (evaluated_) {
+      evaluated_ = false;
+      mass = newton_.matrix(Matrix::kMass).data();
+      cq = newton_.matrix(Matrix::kConstraintDq).data();
+    } else {
+      EvalInput in;
+      in.t = t1;
+      in.q = qn_.data();
+      in.v = vn_.data();
+      EvalOutput out;
+      out.force = force_.data();
+      out.constraint = con_.data();
+      out[Matrix::kMass] = mat_[static_cast<int>(Matrix::kMass)].data();
+      out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+      const int rc = sys_.Evaluate(in, out);
+      if (rc != 0) return rc;
+    }
     const double s = 1 / (1 + alpha_);
     for (int i = 0; i < nq_; ++i) f_[i] = -force_[i];
-    MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq),
-                         mat_[static_cast<int>(Matrix::kConstraintDq)].data(), 1.0, lamn_.data(),
-                         f_.data());
+    MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq), cq, 1.0, lamn_.data(), f_.data());
     if (equilibrium_) {
       for (int i = 0; i < nq_; ++i) res_[i] = s * f_[i];
     } else {
       for (int i = 0; i < nq_; ++i) res_[i] = f_[i] - alpha_ * s * fn_[i];
     }
-    MultiplyAdd(sys_.pattern(Matrix::kMass), mat_[static_cast<int>(Matrix::kMass)].data(), s,
-                an_.data(), res_.data());
+    MultiplyAdd(sys_.pattern(Matrix::kMass), mass, s, an_.data(), res_.data());
     const double sc = 1 / (mix_ * beta_ * h * h);
     for (int j = 0; j < nc_; ++j) res_[nq_ + j] = sc * con_[j];
     for (double r : res_)
@@ -801,10 +813,18 @@ class HhtIntegrator final : public Integrator {
     return 0;
   }
 
-  // Evaluates the Jacobians at the current iterate and factorises the Newton matrix.
+  // Evaluates the Jacobians at the current iterate and factorises the Newton matrix. The
+  // same evaluation gives the next residual's Q and C (evaluated_); where it fails, the
+  // Jacobians alone are evaluated again, so that a failure takes the path it took when
+  // the residual had its own evaluation.
   int NewtonMatrix(double t1, double h, std::string* error) {
-    const int rc = newton_.Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(),
-                                    jac_.data());
+    evaluated_ = false;
+    int rc = newton_.Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(),
+                              jac_.data(), force_.data(), con_.data());
+    if (rc == 0)
+      evaluated_ = true;
+    else
+      rc = newton_.Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(), jac_.data());
     ++summary_.jacobian_evaluations;
     if (rc != 0) {
       *error = sys_.last_error();
@@ -1093,6 +1113,9 @@ class HhtIntegrator final : public Integrator {
   double jacobian_cost_ = 0;
   int cycle_steps_ = 0;
   long cycle_iterations_ = 0;
+  // force_, con_ and newton_.matrix() hold the evaluation at the current qn_, vn_ (made by
+  // NewtonMatrix, used by the next Residual).
+  bool evaluated_ = false;
 };
 
 }  // namespace

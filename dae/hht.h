@@ -183,9 +183,14 @@ class HhtNewtonMatrix {
   const CscPattern& pattern() const { return assembler_.pattern(); }
   // Evaluates the system's matrices at (t, q, v, a, lambda) and writes the matrix for
   // step h into values (pattern().nnz(), pattern order). Returns the system's Evaluate
-  // code (0 success; values are then complete).
+  // code (0 success; values are then complete). With force and constraint (nq and nc
+  // values) the same evaluation also writes Q and C there, and matrix() keeps M and C_q:
+  // a residual at that iterate needs no evaluation of its own.
   int Assemble(double t, double h, const double* q, const double* v, const double* a,
-               const double* lambda, double* values);
+               const double* lambda, double* values, double* force = nullptr,
+               double* constraint = nullptr);
+  // The system's matrix m of the last Assemble (not kConstraintVelDq).
+  const std::vector<double>& matrix(Matrix m) const { return mat_[static_cast<int>(m)]; }
   // The same from matrices the caller evaluated at that iterate: mats[m] holds the values
   // of Matrix m (all but kConstraintVelDq are read; K_Ma with a = a_{n+1}, K_C with
   // w = lambda_{n+1}).

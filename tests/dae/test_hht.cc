@@ -465,6 +465,39 @@ TEST(Hht, ReusesTheNewtonMatrixAcrossSteps) {
   EXPECT_EQ(s.steps_rejected, 0);
 }
 
+// A refresh of the Newton matrix evaluates the system at the step's first iterate, and that
+// evaluation also gives the first residual: in the equilibrium form a step costs the system
+// one evaluation per residual, refresh or not (one more per refresh before). With the
+// refresh by cost on (jacobian_cost 3) there are many refreshes; the run is the same with
+// the counting wrapper.
+class CountingPendulum : public PendulumSystem {
+ public:
+  CountingPendulum() : PendulumSystem(1.0, 1.0, 9.81) {}
+  int Evaluate(const EvalInput& in, EvalOutput& out) override {
+    ++calls;
+    return PendulumSystem::Evaluate(in, out);
+  }
+  long calls = 0;
+};
+
+TEST(Hht, ARefreshGivesTheFirstResidualItsEvaluation) {
+  CountingPendulum sys;
+  HhtOptions opt;
+  opt.step = 1e-3;
+  opt.jacobian_cost = 3;
+  auto integ = MakeHhtIntegrator(sys, opt);
+  integ->Initialize(ConsistentState(sys, {1.0, 0.0}, {0.0, 0.0}));
+  const long before = sys.calls;
+  const Summary at_start = integ->summary();
+  ASSERT_TRUE(integ->AdvanceTo(0.5));
+  const Summary& s = integ->summary();
+  const long residuals = s.residual_evaluations - at_start.residual_evaluations;
+  const long refreshes = s.jacobian_evaluations - at_start.jacobian_evaluations;
+  EXPECT_EQ(s.steps_rejected, 0);
+  EXPECT_GT(refreshes, 50);
+  EXPECT_EQ(sys.calls - before, residuals);
+}
+
 // x^2 + y^2 + L^2 = 0 has no solution: Newton fails at every step size.
 class ImpossiblePendulum : public PendulumSystem {
  public:
