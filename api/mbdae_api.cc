@@ -511,15 +511,10 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
   } else if (key == "hht.newton_tolerance") {
     o.hht_newton_tolerance = ParseOptionNumber(key, value);
   } else if (key == "hht.jacobian_cost") {
-    if (std::string(value) == "auto") {
-      o.hht_jacobian_cost = -1;
-    } else {
-      const double c = ParseOptionNumber(key, value);
-      if (!(c >= 0 && std::isfinite(c)))
-        throw ApiError(MBDAE_ERROR_INPUT, "option hht.jacobian_cost: expected auto or a number >= 0, got '" +
-                                              std::string(value) + "'");
-      o.hht_jacobian_cost = c;
-    }
+    o.hht_jacobian_cost = driver::ParseJacobianCost(value);
+    if (!o.hht_jacobian_cost)
+      throw ApiError(MBDAE_ERROR_INPUT, "option hht.jacobian_cost: expected auto or a number >= 0, got '" +
+                                            std::string(value) + "'");
   } else if (key == "hht.modified") {
     o.hht_modified = ParseOptionBool(key, value);
   } else if (key == "hht.dense_output") {

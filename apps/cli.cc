@@ -203,10 +203,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--jacobian-cost") {
       only_simulate();
       const std::string v = value();
-      const double c = v == "auto" ? -1 : ParseNumber(arg, v);
-      if (v != "auto" && !(c >= 0 && std::isfinite(c)))
+      cl.overrides.hht_jacobian_cost = driver::ParseJacobianCost(v);
+      if (!cl.overrides.hht_jacobian_cost)
         throw UsageError(arg + ": expected auto or a number >= 0, got '" + v + "'");
-      cl.overrides.hht_jacobian_cost = c;
     } else if (arg == "--adaptive") {
       only_simulate();
       no_value();

@@ -124,8 +124,8 @@ struct HhtOptions {
   bool IsValid(std::string* error) const;
 
   // jacobian_cost's value for the tree elimination: on the ball chains of 100 and 1000
-  // rods (bench/README.md, "The Newton matrix's refresh") a fresh matrix costs 2.96 and
-  // 2.85 iterations of HHT with the tree.
+  // rods a fresh matrix costs about 3 iterations of HHT with the tree (docs/hht.md,
+  // "Newton matrix"; bench_step_flops' BM_HhtRefresh fits it).
   static constexpr double kTreeJacobianCost = 3.0;
 };
 

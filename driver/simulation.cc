@@ -11,6 +11,7 @@
 #include <chrono>
 #include <ctime>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <set>
@@ -484,6 +485,14 @@ std::optional<std::vector<std::string>> ParseElementChoice(const std::string& va
   }
 }
 
+std::optional<double> ParseJacobianCost(const std::string& value) {
+  if (value == "auto") return -1.0;
+  char* end = nullptr;
+  const double c = std::strtod(value.c_str(), &end);
+  if (value.empty() || *end != '\0' || !(c >= 0) || !std::isfinite(c)) return std::nullopt;
+  return c;
+}
+
 void CheckOutputSelection(const mbs::Model& model, const mbs::SimulationSettings& settings) {
   io::ResultsLayout layout;
   for (const auto& b : model.bodies) layout.bodies.push_back(b.name);
@@ -705,8 +714,7 @@ OutputRowBuilder::OutputRowBuilder(const mbs::Model& model, Assembly& asmb,
   // tree when the run's integrator was asked for the tree (hht or ida linear_solver:
   // tree; KLU where the system is no tree or a factorisation's pivots are poor:
   // dae/consistent.h), else by KLU. The same a and lambda to round-off; KLU by default
-  // keeps every default result bitwise (the tree moved a reaction error of the
-  // verification report's redundant door, 5.567e-11 -> 5.582e-11).
+  // keeps every default result bitwise.
   const bool tree = (settings.integrator == mbs::IntegratorKind::kHht && settings.hht_linear_solver == "tree") ||
                     (settings.integrator == mbs::IntegratorKind::kIda && settings.ida_linear_solver == "tree");
   if (settings.output_accelerations == "solved")

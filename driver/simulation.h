@@ -82,6 +82,9 @@ void CheckOutputSelection(const mbs::Model& model, const mbs::SimulationSettings
 // `all` -> nullopt (every element), `none` -> an empty list, else comma-separated
 // names. Throws InputError("empty name in 'V'") for an empty name.
 std::optional<std::vector<std::string>> ParseElementChoice(const std::string& value);
+// The text of HHT's jacobian_cost option (--jacobian-cost V, options["hht.jacobian_cost"]):
+// `auto` -> -1, a finite number >= 0 -> itself; anything else -> nullopt.
+std::optional<double> ParseJacobianCost(const std::string& value);
 
 const char* IntegratorName(mbs::IntegratorKind kind);  // "hht" | "ida" | "kinematic" | "erk"
 

@@ -25,6 +25,8 @@
 //                     HhtOptions::LinearSolver::kTree): N/1 Factor + Solve, N/2 Factor,
 //                     N/3 Solve; its flops (BlockTreeLu::factor_flops, solve_flops) and
 //                     its solution's difference from KLU's
+//   BM_HhtRefresh     the tree's step with the Newton matrix refreshed every step (N/1) and
+//                     every second step (N/2): the fit of a refresh's cost in iterations
 //   BM_DenseGemm      C = A B of two dense 256 x 256 matrices (Eigen, as this build
 //                     compiles it): 2 * 256^3 flops, the rate dense code reaches here
 // Counters: flops of the factorisation (klu_flops: the multiply-subtract pairs of the LU
@@ -168,11 +170,8 @@ void FlopCounters(benchmark::State& state, BareKlu& klu, bool factor, bool solve
 // Arguments: N, k, s; the Newton threshold is 10^-k (12: the default HhtOptions), the
 // linear solver KLU (s = 0, the default) or the block tree elimination (s = 1,
 // HhtOptions::LinearSolver::kTree).
-void BM_HhtStep(benchmark::State& state) {
-  Chain& c = GetChain(static_cast<int>(state.range(0)));
-  dae::HhtOptions hht = c.hht;
-  hht.newton_tolerance = std::pow(10.0, -static_cast<double>(state.range(1)));
-  if (state.range(2) == 1) hht.linear_solver = dae::HhtOptions::LinearSolver::kTree;
+// Times fixed steps of HHT with the options hht on chain c (BM_HhtStep, BM_HhtRefresh).
+void TimeHhtSteps(benchmark::State& state, Chain& c, const dae::HhtOptions& hht) {
   auto integ = dae::MakeHhtIntegrator(*c.system, hht);
   dae::Summary base;
   double newton = 0, factor = 0, jacobian = 0, rejected = 0;
@@ -220,6 +219,27 @@ void BM_HhtStep(benchmark::State& state) {
   state.counters["factor_per_step"] = Counter(factor, Counter::kAvgIterations);
   state.counters["jacobian_per_step"] = Counter(jacobian, Counter::kAvgIterations);
   state.counters["rejected_per_step"] = Counter(rejected, Counter::kAvgIterations);
+}
+
+void BM_HhtStep(benchmark::State& state) {
+  Chain& c = GetChain(static_cast<int>(state.range(0)));
+  dae::HhtOptions hht = c.hht;
+  hht.newton_tolerance = std::pow(10.0, -static_cast<double>(state.range(1)));
+  if (state.range(2) == 1) hht.linear_solver = dae::HhtOptions::LinearSolver::kTree;
+  TimeHhtSteps(state, c, hht);
+}
+
+// The tree's step with the Newton matrix refreshed every k-th step (N/k; the rate rule
+// and the refresh by cost off): two k give two equations t = n_it c_it + n_f c_f in the
+// cost of an iteration and of a refresh (run.py fits them; HhtOptions::kTreeJacobianCost).
+void BM_HhtRefresh(benchmark::State& state) {
+  Chain& c = GetChain(static_cast<int>(state.range(0)));
+  dae::HhtOptions hht = c.hht;
+  hht.linear_solver = dae::HhtOptions::LinearSolver::kTree;
+  hht.jacobian_cost = 0;
+  hht.jacobian_reuse_rate = 0.999;
+  hht.max_steps_same_jacobian = static_cast<int>(state.range(1));
+  TimeHhtSteps(state, c, hht);
 }
 
 std::vector<double> RightSide(int n) {
@@ -411,6 +431,12 @@ int main(int argc, char** argv) {
         benchmark::RegisterBenchmark(e.name, e.fn)->Arg(m.first)->Unit(benchmark::kMicrosecond);
       }
     }
+  for (const auto& m : g_models)
+    for (int every : {1, 2})
+      benchmark::RegisterBenchmark("BM_HhtRefresh", BM_HhtRefresh)
+          ->Args({m.first, every})
+          ->Unit(benchmark::kMicrosecond)
+          ->Iterations(m.first <= 100 ? 5 * kWindowSteps : kWindowSteps);
   for (const auto& m : g_models)
     for (int what : {1, 2, 3})
       benchmark::RegisterBenchmark("BM_TreeLu", BM_TreeLu)

@@ -713,6 +713,28 @@ def step_flops_section(results):
                 "tree's | tree refactor GFLOP/s | step, tree / tree refactor + solve | "
                 "step, tree / KLU refactor + solve | solution vs KLU (rel.) |",
                 "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"] + rows
+    fits = []
+    for n in (100, 1000):
+        r1, r2 = get("BM_HhtRefresh/%d" % n, 1), get("BM_HhtRefresh/%d" % n, 2)
+        if not (r1 and r2):
+            continue
+        # t = it * c_it + f * c_f for the two refresh intervals.
+        a, b, e = r1["newton_per_step"], r1["factor_per_step"], r1["cpu_time"]
+        c, d, f = r2["newton_per_step"], r2["factor_per_step"], r2["cpu_time"]
+        det = a * d - b * c
+        if det == 0:
+            continue
+        c_it, c_f = (e * d - b * f) / det, (a * f - e * c) / det
+        fits.append("| %d | %.2f + %.3f: %.0f | %.2f + %.3f: %.0f | %.1f | %.0f | %.2f |" % (
+            n, a, b, e, c, d, f, c_it, c_f, c_f / c_it))
+    if fits:
+        out += ["", "The cost of a refresh of the Newton matrix with the tree (`BM_HhtRefresh`: the "
+                "tree's step at 1e-12 with the matrix refreshed every step and every second step, "
+                "the rate rule and the refresh by cost off), fitted from the two as t = iterations x "
+                "c_it + refreshes x c_f per step; `HhtOptions::kTreeJacobianCost` = 3 rests on it "
+                "(`docs/hht.md`, \"Newton matrix\"):", "",
+                "| N | every step: it. + refr. per step: us | every second step | c_it [us] | "
+                "c_f [us] | c_f / c_it |", "| ---: | ---: | ---: | ---: | ---: | ---: |"] + fits
     g = get("BM_DenseGemm", 256)
     if g:
         rate = g["GFLOPs"]
