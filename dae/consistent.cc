@@ -232,6 +232,7 @@ class KeptConstraints final : public MechanicalSystem {
                                     "distinct (" + std::to_string(kept_[k - 1]) + " before " +
                                     std::to_string(kept_[k]) + ")");
     }
+    all_kept_ = static_cast<int>(kept_.size()) == nc;  // sorted and distinct: 0 .. nc - 1
     std::vector<int> new_row(nc, -1);
     for (size_t k = 0; k < kept_.size(); ++k) new_row[kept_[k]] = static_cast<int>(k);
     Filter(base_.pattern(Matrix::kConstraintDq), new_row, &cq_, &cq_map_);
@@ -269,6 +270,9 @@ class KeptConstraints final : public MechanicalSystem {
   }
 
   int Evaluate(const EvalInput& in, EvalOutput& out) override {
+    // Nothing set aside (the usual case): the same rows in the same order, so the base
+    // system writes the outputs itself, without the copies below.
+    if (all_kept_) return base_.Evaluate(in, out);
     EvalInput bin = in;
     if (in.w) {
       // Weights of the dropped equations are zero.
@@ -334,6 +338,7 @@ class KeptConstraints final : public MechanicalSystem {
 
   MechanicalSystem& base_;
   std::vector<int> kept_;
+  bool all_kept_ = false;  // kept_ is every equation
   CscPattern param_[kNumParameterMatrices];
   std::vector<int> param_map_[kNumParameterMatrices];
   std::vector<double> param_full_[kNumParameterMatrices];

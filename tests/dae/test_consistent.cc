@@ -447,6 +447,46 @@ TEST(KeepConstraints, ViewMatchesTheKeptRowsOfTheBase) {
   EXPECT_THROW(KeepConstraints(base, {2}), std::invalid_argument);
 }
 
+// With no equation set aside the view hands the evaluation to the base system unchanged
+// (no copies): the same patterns and bitwise the same outputs, weights included.
+TEST(KeepConstraints, ViewOfEveryEquationIsTheBase) {
+  NonlinearSystem base;
+  auto view = KeepConstraints(base, {0, 1});
+  ASSERT_EQ(view->num_constraints(), 2);
+  const double q[3] = {0.4, -0.2, 0.6}, v[3] = {0.3, 0.5, -0.8}, a[3] = {1, 2, 3};
+  const double w[2] = {0.37, -1.3};
+  EvalInput in; in.t = 0.4; in.q = q; in.v = v; in.a = a; in.w = w;
+  std::vector<double> out_b[3], out_v[3];
+  std::vector<std::vector<double>> bm(kNumMatrices), vm(kNumMatrices);
+  EvalOutput bout, vout;
+  for (int k = 0; k < 3; ++k) {
+    out_b[k].assign(2, -7.0);
+    out_v[k].assign(2, 7.0);
+  }
+  bout.constraint = out_b[0].data(); bout.constraint_dt = out_b[1].data(); bout.acc_rhs = out_b[2].data();
+  vout.constraint = out_v[0].data(); vout.constraint_dt = out_v[1].data(); vout.acc_rhs = out_v[2].data();
+  for (int m = 0; m < kNumMatrices; ++m) {
+    const Matrix mm = static_cast<Matrix>(m);
+    const CscPattern& pb = base.pattern(mm);
+    const CscPattern& pv = view->pattern(mm);
+    ASSERT_EQ(pv.rows, pb.rows);
+    ASSERT_EQ(pv.cols, pb.cols);
+    ASSERT_EQ(pv.col_start, pb.col_start) << "matrix " << m;
+    ASSERT_EQ(pv.row_index, pb.row_index) << "matrix " << m;
+    bm[m].assign(pb.nnz(), -7.0);
+    vm[m].assign(pv.nnz(), 7.0);
+    bout.matrix[m] = bm[m].data();
+    vout.matrix[m] = vm[m].data();
+  }
+  ASSERT_EQ(base.Evaluate(in, bout), 0);
+  ASSERT_EQ(view->Evaluate(in, vout), 0);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(out_v[k], out_b[k]) << "output " << k;
+  for (int m = 0; m < kNumMatrices; ++m) EXPECT_EQ(vm[m], bm[m]) << "matrix " << m;
+  // Not all zero: the comparison sees real values.
+  EXPECT_NE(out_b[0][0], 0.0);
+  EXPECT_NE(bm[static_cast<int>(Matrix::kConstraintDq)][0], 0.0);
+}
+
 TEST(ConsistencyOptions, Validation) {
   std::string why;
   EXPECT_TRUE(ConsistencyOptions{}.IsValid(&why));
