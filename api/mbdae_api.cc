@@ -267,6 +267,7 @@ void AddCounters(const dae::Summary& from, dae::Summary* to) {
   to->klu_fallbacks += from.klu_fallbacks;
   if (!from.linear_solver.empty()) to->linear_solver = from.linear_solver;
   if (from.jacobian_cost >= 0) to->jacobian_cost = from.jacobian_cost;
+  if (!from.predictor.empty()) to->predictor = from.predictor;
 }
 
 // Adds the counters of the current integrator to finished_counters and drops it.
@@ -451,7 +452,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, hht.jacobian_cost, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, hht.jacobian_cost, hht.predictor, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
     "erk.rtol, erk.atol, erk.max_steps, erk.min_step, erk.max_step, output.bodies, output.joints, output.forces, "
     "output.measures, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
@@ -527,6 +528,12 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
       throw ApiError(MBDAE_ERROR_INPUT,
                      "option hht.form: expected equilibrium or negrut, got '" + v + "'");
     o.hht_form = v;
+  } else if (key == "hht.predictor") {
+    const std::string v = value;
+    if (v != "auto" && v != "constant" && v != "linear")
+      throw ApiError(MBDAE_ERROR_INPUT,
+                     "option hht.predictor: expected auto, constant or linear, got '" + v + "'");
+    o.hht_predictor = v;
   } else if (key == "hht.linear_solver" || key == "ida.linear_solver") {
     const std::string v = value;
     if (v != "klu" && v != "tree")
@@ -605,6 +612,7 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "ida.dense_output") return boolean(s.ida_dense_output);
   if (key == "hht.form") return s.hht_form;
   if (key == "hht.linear_solver") return s.hht_linear_solver;
+  if (key == "hht.predictor") return s.hht_predictor;
   if (key == "ida.linear_solver") return s.ida_linear_solver;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);

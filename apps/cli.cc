@@ -236,6 +236,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--hht-start") {
       only_simulate();
       cl.overrides.hht_start = choice({"consistent", "perturbed"});
+    } else if (arg == "--predictor") {
+      only_simulate();
+      cl.overrides.hht_predictor = choice({"auto", "constant", "linear"});
     } else if (arg == "--linear-solver") {
       only_simulate();
       cl.overrides.hht_linear_solver = cl.overrides.ida_linear_solver = choice({"klu", "tree"});

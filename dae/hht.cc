@@ -119,6 +119,10 @@ constexpr NameTable<HhtOptions::Form> kFormNames = {
     {"equilibrium", HhtOptions::Form::kEquilibrium}, {"negrut", HhtOptions::Form::kNegrut}};
 constexpr NameTable<HhtOptions::Start> kStartNames = {
     {"consistent", HhtOptions::Start::kConsistent}, {"perturbed", HhtOptions::Start::kPerturbed}};
+constexpr NameTable<HhtOptions::Predictor> kPredictorNames = {
+    {"auto", HhtOptions::Predictor::kAuto},
+    {"constant", HhtOptions::Predictor::kConstant},
+    {"linear", HhtOptions::Predictor::kLinear}};
 constexpr NameTable<HhtOptions::LinearSolver> kLinearSolverNames = {
     {"klu", HhtOptions::LinearSolver::kKlu}, {"tree", HhtOptions::LinearSolver::kTree}};
 
@@ -131,6 +135,12 @@ bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {
 const char* HhtStartName(HhtOptions::Start start) { return NameOf(start, kStartNames); }
 bool ParseHhtStart(const std::string& name, HhtOptions::Start* start) {
   return ParseName(name, kStartNames, start);
+}
+const char* HhtPredictorName(HhtOptions::Predictor predictor) {
+  return NameOf(predictor, kPredictorNames);
+}
+bool ParseHhtPredictor(const std::string& name, HhtOptions::Predictor* predictor) {
+  return ParseName(name, kPredictorNames, predictor);
 }
 const char* HhtLinearSolverName(HhtOptions::LinearSolver solver) {
   return NameOf(solver, kLinearSolverNames);
@@ -277,14 +287,17 @@ class HhtIntegrator final : public Integrator {
     jacobian_cost_ = opt_.jacobian_cost >= 0 ? opt_.jacobian_cost
                      : tree_                 ? HhtOptions::kTreeJacobianCost
                                              : 0.0;
+    linear_predictor_ = opt_.predictor == HhtOptions::Predictor::kAuto
+                            ? tree_ != nullptr
+                            : opt_.predictor == HhtOptions::Predictor::kLinear;
 
     const int n = nq_ + nc_;
-    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_})
+    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_, &a_prev_})
       v->assign(nq_, 0.0);
     const size_t ng = sys_.quaternion_offsets().size();
     wbar_.assign(3 * ng, 0.0);
     wbar_new_.assign(3 * ng, 0.0);
-    for (auto* v : {&lamn_, &con_}) v->assign(nc_, 0.0);
+    for (auto* v : {&lamn_, &con_, &lam_prev_}) v->assign(nc_, 0.0);
     res_.assign(n, 0.0);
     x_.assign(n, 0.0);
     state_.Resize(nq_, nc_);
@@ -304,6 +317,7 @@ class HhtIntegrator final : public Integrator {
     summary_ = Summary();
     summary_.linear_solver = LinearSolverReport();
     summary_.jacobian_cost = jacobian_cost_;
+    summary_.predictor = PredictorName();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
     h_prev_ = 0;
@@ -356,7 +370,7 @@ class HhtIntegrator final : public Integrator {
                              "state it reports is interpolated, not a step's");
     out->state = state_;
     const int ng = static_cast<int>(wbar_.size() / 3);
-    out->history.resize(HhtHistory::Size(nq_, ng));
+    out->history.resize(HhtHistory::Size(nq_, nc_, ng));
     double* hist = out->history.data();
     hist[HhtHistory::kForm] = equilibrium_ ? 1 : 2;
     hist[HhtHistory::kModified] = opt_.modified ? 1 : 0;
@@ -367,6 +381,9 @@ class HhtIntegrator final : public Integrator {
     const std::vector<double>& carried = equilibrium_ ? abar_ : fn_;
     std::copy(carried.begin(), carried.end(), hist + HhtHistory::kVectors);
     std::copy(wbar_.begin(), wbar_.end(), hist + HhtHistory::kVectors + nq_);
+    double* prev = hist + HhtHistory::kVectors + nq_ + 3 * ng;
+    std::copy(a_prev_.begin(), a_prev_.end(), prev);
+    std::copy(lam_prev_.begin(), lam_prev_.end(), prev + nq_);
   }
 
   void RestoreSnapshot(const IntegratorSnapshot& x) override {
@@ -376,13 +393,13 @@ class HhtIntegrator final : public Integrator {
     const State& s = x.state;
     if (static_cast<int>(s.q.size()) != nq_ || static_cast<int>(s.v.size()) != nq_ ||
         static_cast<int>(s.a.size()) != nq_ || static_cast<int>(s.lambda.size()) != nc_ ||
-        static_cast<int>(x.history.size()) != HhtHistory::Size(nq_, ng))
+        static_cast<int>(x.history.size()) != HhtHistory::Size(nq_, nc_, ng))
       throw std::invalid_argument(
           "HHT::RestoreSnapshot: the snapshot's sizes (q " + std::to_string(s.q.size()) +
           ", lambda " + std::to_string(s.lambda.size()) + ", history " +
           std::to_string(x.history.size()) + ") do not match the system (nq = " +
           std::to_string(nq_) + ", nc = " + std::to_string(nc_) + ", history " +
-          std::to_string(HhtHistory::Size(nq_, ng)) + ")");
+          std::to_string(HhtHistory::Size(nq_, nc_, ng)) + ")");
     const double* hist = x.history.data();
     if (hist[HhtHistory::kForm] != (equilibrium_ ? 1 : 2) ||
         hist[HhtHistory::kModified] != (opt_.modified ? 1 : 0) || hist[HhtHistory::kAlpha] != alpha_)
@@ -401,6 +418,7 @@ class HhtIntegrator final : public Integrator {
     summary_ = Summary();
     summary_.linear_solver = LinearSolverReport();
     summary_.jacobian_cost = jacobian_cost_;
+    summary_.predictor = PredictorName();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = s.t;
     h_prev_ = hist[HhtHistory::kHPrev];
@@ -415,6 +433,9 @@ class HhtIntegrator final : public Integrator {
     std::copy(hist + HhtHistory::kVectors, hist + HhtHistory::kVectors + nq_, carried.begin());
     std::copy(hist + HhtHistory::kVectors + nq_, hist + HhtHistory::kVectors + nq_ + 3 * ng,
               wbar_.begin());
+    const double* prev = hist + HhtHistory::kVectors + nq_ + 3 * ng;
+    std::copy(prev, prev + nq_, a_prev_.begin());
+    std::copy(prev + nq_, prev + nq_ + nc_, lam_prev_.begin());
     initialized_ = true;
     std::fill(quad_.begin(), quad_.end(), 0.0);
     if (quad_spec_.size > 0 && !EvaluateIntegrand(quad_g_.data())) {
@@ -858,6 +879,10 @@ class HhtIntegrator final : public Integrator {
         tree_refusal_ = "the first factorisation's pivots were unusable";
         summary_.linear_solver = LinearSolverReport();
         if (opt_.jacobian_cost < 0) jacobian_cost_ = summary_.jacobian_cost = 0;  // KLU's rules
+        if (opt_.predictor == HhtOptions::Predictor::kAuto) {
+          linear_predictor_ = false;
+          summary_.predictor = PredictorName();
+        }
       }
     }
     if (!klu_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
@@ -913,11 +938,7 @@ class HhtIntegrator final : public Integrator {
                        steps_with_jacobian_ >= opt_.max_steps_same_jacobian;
     bool retried = false;
     for (int attempt = 0; attempt < 2; ++attempt) {
-      // Predictor: a_{n+1} = a_n, lambda_{n+1} = lambda_n.
-      std::copy(state_.a.begin(), state_.a.end(), an_.begin());
-      std::copy(state_.lambda.begin(), state_.lambda.end(), lamn_.begin());
-      e_iter_ = state_.q;  // no allocation: same size
-      Kinematics(h);
+      Predict(h);
       jacobian_fresh_ = false;
       if ((attempt == 0 && stale) || attempt == 1) {
         std::string err;
@@ -1013,6 +1034,34 @@ class HhtIntegrator final : public Integrator {
     return StepResult::kNewtonFailure;
   }
 
+  // The first iterate of a step of size h (HhtOptions::predictor): an_, lamn_, and qn_,
+  // vn_ from them. Constant: a_n, lambda_n. Linear (after an accepted step): a_n + r (a_n -
+  // a_{n-1}), lambda likewise, r = h / h_prev; the modified scheme's G(e_{n+1}) of the
+  // kinematic update is then taken at the Euler parameters of a first pass with G(e_n)
+  // (e_iter_), as a Newton iteration does after its correction.
+  void Predict(double h) {
+    std::copy(state_.a.begin(), state_.a.end(), an_.begin());
+    std::copy(state_.lambda.begin(), state_.lambda.end(), lamn_.begin());
+    const bool extrapolate = linear_predictor_ && h_prev_ > 0;
+    if (extrapolate) {
+      const double r = h / h_prev_;
+      for (int i = 0; i < nq_; ++i) an_[i] += r * (state_.a[i] - a_prev_[i]);
+      for (int j = 0; j < nc_; ++j) lamn_[j] += r * (state_.lambda[j] - lam_prev_[j]);
+    }
+    e_iter_ = state_.q;  // no allocation: same size
+    Kinematics(h);
+    if (extrapolate && opt_.modified && !sys_.quaternion_offsets().empty()) {
+      for (int g : sys_.quaternion_offsets())
+        for (int k = 0; k < 4; ++k) e_iter_[g + k] = qn_[g + k];
+      Kinematics(h);
+    }
+  }
+
+  const char* PredictorName() const {
+    return HhtPredictorName(linear_predictor_ ? HhtOptions::Predictor::kLinear
+                                              : HhtOptions::Predictor::kConstant);
+  }
+
   // The matrix's refresh by cost (HhtOptions::jacobian_cost, c > 0): the k-th step on a
   // matrix (counting from 1) took n_k iterations; the average cost per step of the matrix
   // so far is (c + n_1 + ... + n_k) / k, and once n_k reaches it the next steps on the old
@@ -1045,6 +1094,9 @@ class HhtIntegrator final : public Integrator {
   }
 
   void Accept(double h, double t1) {
+    // a_n and lambda_n become the linear predictor's a_{n-1}, lambda_{n-1}.
+    std::copy(state_.a.begin(), state_.a.end(), a_prev_.begin());
+    std::copy(state_.lambda.begin(), state_.lambda.end(), lam_prev_.begin());
     if (dense_) {  // the step's start, for the interpolation (no allocation: same sizes)
       prev_.t = state_.t;
       prev_.q.swap(state_.q);
@@ -1090,6 +1142,9 @@ class HhtIntegrator final : public Integrator {
   std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)
   // Equilibrium form: abar_n and abar_{n+1}; per quaternion group omegabar'_n, _{n+1}.
   std::vector<double> abar_, abar_new_, wbar_, wbar_new_;
+  // a_{n-1} and lambda_{n-1}, the linear predictor's (valid when h_prev_ > 0).
+  std::vector<double> a_prev_, lam_prev_;
+  bool linear_predictor_ = false;  // HhtOptions::predictor resolved
   State state_;
   Summary summary_;
   std::string message_;

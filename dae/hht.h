@@ -100,6 +100,17 @@ struct HhtOptions {
   // when the tree elimination factorises the matrix, 0 with KLU (whose results are those
   // of the rules above).
   double jacobian_cost = -1;
+  // The first iterate of each step's Newton iteration (docs/hht.md, "Newton iteration"):
+  //  kConstant: a_{n+1} = a_n, lambda_{n+1} = lambda_n.
+  //  kLinear: extrapolated from the last two accepted steps, a_{n+1} = a_n + r (a_n -
+  //    a_{n-1}) and lambda likewise, r = h / h_prev (constant in the first step after
+  //    Initialize); in the modified scheme the iterate's G(e_{n+1}) is also taken at the
+  //    Euler parameters this prediction gives instead of at e_n (one more pass of the
+  //    kinematic update). The converged step is the same to the Newton threshold.
+  //  kAuto (default): kLinear when the tree elimination factorises the matrix, kConstant
+  //    with KLU (whose results stay those of the constant predictor).
+  enum class Predictor { kAuto, kConstant, kLinear };
+  Predictor predictor = Predictor::kAuto;
   // Replay: when not empty, the steps taken are exactly these sizes in order (e.g. the
   // accepted steps of an earlier adaptive run), with no error control and no step
   // changes: a Newton failure or a sequence that does not meet an AdvanceTo target (to
@@ -133,6 +144,10 @@ struct HhtOptions {
 const char* HhtLinearSolverName(HhtOptions::LinearSolver solver);
 bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* solver);
 
+// "auto" | "constant" | "linear"; and the inverse (false for an unknown name).
+const char* HhtPredictorName(HhtOptions::Predictor predictor);
+bool ParseHhtPredictor(const std::string& name, HhtOptions::Predictor* predictor);
+
 // "equilibrium" | "negrut"; and the inverse (false for an unknown name).
 const char* HhtFormName(HhtOptions::Form form);
 bool ParseHhtForm(const std::string& name, HhtOptions::Form* form);
@@ -143,7 +158,7 @@ bool ParseHhtStart(const std::string& name, HhtOptions::Start* start);
 std::unique_ptr<Integrator> MakeHhtIntegrator(MechanicalSystem& system, const HhtOptions& options);
 
 // The history of an HHT snapshot (IntegratorSnapshot::history; Integrator::SaveSnapshot,
-// RestoreSnapshot): Size(nq, ng) numbers for ng Euler-parameter groups
+// RestoreSnapshot): Size(nq, nc, ng) numbers for ng Euler-parameter groups
 // (MechanicalSystem::quaternion_offsets), in this order:
 //   kForm     1 (equilibrium form) or 2 (negrut)
 //   kModified 1 (the modified scheme) or 0
@@ -155,10 +170,11 @@ std::unique_ptr<Integrator> MakeHhtIntegrator(MechanicalSystem& system, const Hh
 //             run continues, with the run's steps as replay_steps, with step n + 1
 //   kVectors  nq numbers: abar_n (equilibrium form) or F_n = C_q^T lambda_n - Q_n
 //             (negrut), then 3 ng: each group's omegabar'_n (equilibrium form; kept
-//             but unused by negrut)
+//             but unused by negrut), then nq: a_{n-1} and nc: lambda_{n-1} (the
+//             linear predictor's; unused when kHPrev is 0)
 struct HhtHistory {
   enum : int { kForm = 0, kModified, kAlpha, kHPrev, kHNext, kStep, kVectors };
-  static int Size(int nq, int ng) { return kVectors + nq + 3 * ng; }
+  static int Size(int nq, int nc, int ng) { return kVectors + 2 * nq + 3 * ng + nc; }
 };
 
 // The Newton matrix of an HHT step of size h (docs/hht.md), the one the integrator

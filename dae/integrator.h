@@ -50,6 +50,9 @@ struct Summary {
   // HHT: the cost of a fresh Newton matrix its refresh rule used at the end of the run
   // (HhtOptions::jacobian_cost resolved; 0: the rate and age rules alone); -1 elsewhere.
   double jacobian_cost = -1;
+  // HHT: the predictor of its Newton iteration ("constant" or "linear",
+  // HhtOptions::predictor resolved); empty elsewhere.
+  std::string predictor;
   double h_last = 0;         // last step size used
 
   std::string BriefReport() const;

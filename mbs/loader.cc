@@ -1656,7 +1656,7 @@ class Loader {
     if (const YAML::Node o = node["output"]) LoadOutputSelection(o);
     if (const YAML::Node h = node["hht"]) {
       CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output",
-                    "newton_tolerance", "linear_solver", "jacobian_cost"},
+                    "newton_tolerance", "linear_solver", "jacobian_cost", "predictor"},
                 "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
@@ -1695,6 +1695,10 @@ class Loader {
             Fail(n, element, "hht jacobian_cost must be auto or a number >= 0, got " +
                                  Num(s.hht_jacobian_cost));
         }
+      }
+      if (const YAML::Node n = h["predictor"]) {
+        s.hht_predictor = Enum<std::string>(n, element, "predictor",
+                                            {{"auto", "auto"}, {"constant", "constant"}, {"linear", "linear"}});
       }
     }
     if (const YAML::Node i = node["ida"]) {

@@ -281,6 +281,10 @@ struct SimulationSettings {
   // `hht: {jacobian_cost}`, a number >= 0 or `auto` (-1 here: 3 with the tree elimination,
   // 0 with KLU).
   double hht_jacobian_cost = -1;
+  // The first iterate of HHT's Newton iteration (dae/hht.h HhtOptions::predictor;
+  // docs/hht.md, "Newton iteration"): the file's `hht: {predictor}`, "auto" (linear with
+  // the tree elimination, constant with KLU), "constant" or "linear".
+  std::string hht_predictor = "auto";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its

@@ -350,6 +350,7 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
   if (sim.hht_linear_solver != SimulationSettings().hht_linear_solver)
     s << ", linear_solver: " << sim.hht_linear_solver;
   if (sim.hht_jacobian_cost >= 0) s << ", jacobian_cost: " << Num(sim.hht_jacobian_cost);
+  if (sim.hht_predictor != SimulationSettings().hht_predictor) s << ", predictor: " << sim.hht_predictor;
   s << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol);
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;

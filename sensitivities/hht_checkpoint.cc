@@ -88,7 +88,7 @@ HhtTrajectory::HhtTrajectory(int nq, int nc) : nq_(nq), nc_(nc) { Reset(); }
 size_t HhtTrajectory::minimum_budget() const {
   // The largest HHT history a system of nq coordinates can have (nq / 4 groups), so that
   // a budget accepted here holds 16 checkpoints of any integrator Attach meets.
-  return kMinCheckpoints * (state_bytes() + sizeof(double) * dae::HhtHistory::Size(nq_, nq_ / 4));
+  return kMinCheckpoints * (state_bytes() + sizeof(double) * dae::HhtHistory::Size(nq_, nc_, nq_ / 4));
 }
 
 void HhtTrajectory::set_memory_budget(size_t bytes) {

@@ -54,7 +54,7 @@ class HhtTrajectory {
   size_t memory_budget() const { return budget_; }
   // The smallest budget accepted: 16 checkpoints of the largest HHT history nq
   // coordinates allow (nq / 4 Euler-parameter groups): 16 x 8 (3 nq + nc +
-  // dae::HhtHistory::Size(nq, nq / 4)) bytes.
+  // dae::HhtHistory::Size(nq, nc, nq / 4)) bytes.
   size_t minimum_budget() const;
 
   // Records the integrator's run (sets its step observer; call before Initialize; starts

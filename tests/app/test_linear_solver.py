@@ -3,8 +3,9 @@ options["hht.linear_solver"]; docs/hht.md, "Linear solver") through the program 
 Python package.
 
 - models/pendulum.yaml (a tree of one body): `tree` takes the same 500 steps as `klu`
-  and, with `--jacobian-cost 0` (KLU's refresh rules, so that only the linear solver
-  differs; test_jacobian_cost.py has the tree's own), its rows agree to round-off
+  and, with `--jacobian-cost 0 --predictor constant` (KLU's refresh rules and predictor,
+  so that only the linear solver differs; test_jacobian_cost.py and test_predictor.py
+  have the tree's own), its rows agree to round-off
   (measured 0 to 1e-15 rad); the attributes hht_linear_solver and linear_solver_used say
   `tree`;
 - models/fourbar.yaml (a loop closed through the ground, which the forest of bodies and
@@ -33,7 +34,7 @@ FOURBAR = os.path.join(MODELS, "fourbar.yaml")
 
 def test_tree_takes_the_same_steps_on_a_tree(tmp_path):
     with simulate(tmp_path, PENDULUM, "k.h5") as k, \
-            simulate(tmp_path, PENDULUM, "t.h5", ["--linear-solver", "tree", "--jacobian-cost", "0"]) as t:
+            simulate(tmp_path, PENDULUM, "t.h5", ["--linear-solver", "tree", "--jacobian-cost", "0", "--predictor", "constant"]) as t:
         assert k.attrs["hht_linear_solver"] == "klu"
         assert k.attrs["linear_solver_used"] == "klu"
         assert t.attrs["hht_linear_solver"] == "tree"
@@ -114,6 +115,7 @@ def test_python_option():
             assert m.options["hht.linear_solver"] == "klu"
             m.options["hht.linear_solver"] = solver
             m.options["hht.jacobian_cost"] = 0
+            m.options["hht.predictor"] = "constant"
             assert m.options["hht.linear_solver"] == solver
             m.solve()
             angles[solver] = np.array(m.outputs.measure("angle"))

@@ -130,6 +130,24 @@ TEST(HhtRestore, PendulumNegrutAdaptive) {
   RestoreCase(sys, opt, PendulumStart(sys), 1.0, 25);
 }
 
+// The linear predictor extrapolates from a_{n-1} and lambda_{n-1}: the snapshot carries
+// them (the recorded state before the snapshot's), and a restored run continues within
+// the Newton threshold's reach as with the constant predictor.
+TEST(HhtRestore, HeavyTopLinearPredictorCarriesThePreviousStep) {
+  HeavyTop top;
+  dae::HhtOptions opt = HeavyTop::Options(true, true);
+  opt.predictor = dae::HhtOptions::Predictor::kLinear;
+  const int at = 60;
+  const Recorded rec = RecordRun(*top.sys, opt, top.x0, 0.3, at);
+  ASSERT_GT(static_cast<int>(rec.states.size()), at + 20);
+  const int ng = 1;
+  const double* prev = rec.snapshot.history.data() + dae::HhtHistory::kVectors + top.nq + 3 * ng;
+  const dae::State& before = rec.states[at - 1];
+  for (int i = 0; i < top.nq; ++i) EXPECT_EQ(prev[i], before.a[i]) << i;
+  for (int j = 0; j < top.nc; ++j) EXPECT_EQ(prev[top.nq + j], before.lambda[j]) << j;
+  RestoreCase(*top.sys, opt, top.x0, 0.3, at);
+}
+
 TEST(HhtRestore, RefusesSnapshotsOfAnotherKind) {
   HeavyTop top;
   dae::HhtOptions opt = HeavyTop::Options(true, false);
@@ -137,7 +155,7 @@ TEST(HhtRestore, RefusesSnapshotsOfAnotherKind) {
   eq->Initialize(top.x0);
   dae::IntegratorSnapshot snap;
   eq->SaveSnapshot(&snap);
-  EXPECT_EQ(snap.history.size(), size_t(dae::HhtHistory::Size(top.nq, 1)));
+  EXPECT_EQ(snap.history.size(), size_t(dae::HhtHistory::Size(top.nq, top.nc, 1)));
   EXPECT_EQ(snap.bytes(), 8 * (1 + 3 * size_t(top.nq) + top.nc + snap.history.size()));
   for (int change = 0; change < 3; ++change) {
     dae::HhtOptions other = opt;
@@ -295,7 +313,7 @@ TEST(HhtCheckpoint, BadBudgetsAreRefused) {
   HeavyTop top;
   HhtTrajectory tr(top.nq, top.nc);
   const size_t least = tr.minimum_budget();
-  EXPECT_EQ(least, 16 * 8 * (3 * size_t(top.nq) + top.nc + dae::HhtHistory::Size(top.nq, 1)));
+  EXPECT_EQ(least, 16 * 8 * (3 * size_t(top.nq) + top.nc + dae::HhtHistory::Size(top.nq, top.nc, 1)));
   EXPECT_THROW(tr.set_memory_budget(least - 1), std::invalid_argument);
   EXPECT_THROW(tr.set_memory_budget(1), std::invalid_argument);
   EXPECT_NO_THROW(tr.set_memory_budget(0));
@@ -313,7 +331,7 @@ TEST(HhtCheckpoint, BadBudgetsAreRefused) {
   integ->Initialize(top.x0);
   EXPECT_THROW(tr.set_memory_budget(0), std::logic_error);
   EXPECT_EQ(tr.size(), 1);
-  EXPECT_EQ(tr.checkpoint_bytes(), tr.state_bytes() + 8 * size_t(dae::HhtHistory::Size(top.nq, 1)));
+  EXPECT_EQ(tr.checkpoint_bytes(), tr.state_bytes() + 8 * size_t(dae::HhtHistory::Size(top.nq, top.nc, 1)));
 }
 
 // A checkpointed trajectory recomputed with options other than the run's: refused with
