@@ -76,10 +76,13 @@ def run_shuffled(ns, settings, repeats, run_one, describe):
     return runs
 
 
-def parse_args(doc, ns):
+def parse_args(doc, ns, more=None):
     """The benchmarks' command line (description: doc's first line): --mbdae (default
-    build/mbdae), --repeats (3), --n (default ns), --results (bench/results)."""
+    build/mbdae), --repeats (3), --n (default ns), --results (bench/results), and the
+    arguments more(parser) adds."""
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    if more:
+        more(ap)
     ap.add_argument("--mbdae", default=os.path.join(ROOT, "build", "mbdae"))
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--n", type=int, nargs="+", default=sorted(ns))
