@@ -1,5 +1,5 @@
 """Shared by the whole-run benchmarks on issue 12's ball chains (bench/newton_tolerance.py,
-bench/linear_solver.py, bench/jacobian_cost.py): their command line, the chains'
+bench/linear_solver.py, bench/jacobian_cost.py, bench/predictor.py): their command line, the chains'
 references, the chain models, `mbdae simulate` runs of a list of settings repeated with the
 order shuffled in every repeat (so that the runs of one setting spread over the
 invocation), what a run's results file says, a setting's summary over its repeats and the
@@ -74,6 +74,28 @@ def run_shuffled(ns, settings, repeats, run_one, describe):
                                              "%.3f s" % r["solver_time"] if "solver_time" in r else r["status"]),
                       flush=True)
     return runs
+
+
+def hht_study(a, settings, options_of, attrs, describe, keys):
+    """Fixed-step HHT runs of every setting (n, h, ...) with `--step h` and the options
+    options_of(setting), as run_shuffled runs them (a: parse_args's). Returns the rows --
+    dict(zip(keys, setting)) with the setting's summary (attrs read from the results file)
+    and its done runs' solver times -- and the load average before."""
+    refs = references(a.n)
+    load_before = os.getloadavg()[0]
+
+    def one(model, s, out):
+        return simulate(a.mbdae, model, s[0], ["--integrator", "hht", "--fixed-step", "--step", repr(s[1])] +
+                        options_of(s), out, attrs)
+
+    runs = run_shuffled(a.n, settings, a.repeats, one, describe)
+    rows = []
+    for s in settings:
+        row = dict(zip(keys, s))
+        row.update(summary(runs[s], refs[s[0]], attrs))
+        row["solver_times"] = [r["solver_time"] for r in runs[s] if r["status"] == "done"]
+        rows.append(row)
+    return rows, load_before
 
 
 def parse_args(doc, ns, more=None):

@@ -11,7 +11,9 @@ shuffled in every repeat. Reported: the tip error at t = 1 s against the peers
 benchmark's reference (`bench/results/peers/reference_chainN.json`), Newton iterations
 and factorisations per step, the work per step in iterations (iterations + c x
 factorisations with c = 3 for the tree, 5 for KLU: what the cost measures), the solver's
-CPU time (median over the repeats) and its ratio to cost 0 with the same solver. Writes
+CPU time (median over the repeats) and its ratio to cost 0 with the same solver. The
+predictor is the constant one throughout (`--predictor constant`; the tree's default, the
+linear one: bench/predictor.py), so that only the cost differs. Writes
 `bench/results/jacobian_cost.md` and `.json`. The tests do not run it.
 """
 import os
@@ -27,25 +29,12 @@ WORK_COST = {"tree": 3, "klu": 5}
 
 def main():
     a = chain_runs.parse_args(__doc__, STEPS)
-    refs = chain_runs.references(a.n)
     runs_of = [(n, h, solver, cost) for n in a.n for h in STEPS[n] for solver, cost in SETTINGS]
-    load_before = os.getloadavg()[0]
-
-    def one(model, s, out):
-        n, h, solver, cost = s
-        return chain_runs.simulate(a.mbdae, model, n, [
-            "--integrator", "hht", "--fixed-step", "--step", repr(h), "--linear-solver", solver,
-            "--jacobian-cost", str(cost)], out, ("linear_solver_used", "jacobian_cost_used"))
-
-    runs = chain_runs.run_shuffled(a.n, runs_of, a.repeats, one,
-                                   lambda s: "N = %d, h = %g, %s, cost %g" % s)
-    rows = []
-    for s in runs_of:
-        n, h, solver, cost = s
-        row = {"n": n, "h": h, "solver": solver, "jacobian_cost": cost}
-        row.update(chain_runs.summary(runs[s], refs[n], ("linear_solver_used", "jacobian_cost_used")))
-        row["solver_times"] = [r["solver_time"] for r in runs[s] if r["status"] == "done"]
-        rows.append(row)
+    rows, load_before = chain_runs.hht_study(
+        a, runs_of,
+        lambda s: ["--linear-solver", s[2], "--jacobian-cost", str(s[3]), "--predictor", "constant"],
+        ("linear_solver_used", "jacobian_cost_used"), lambda s: "N = %d, h = %g, %s, cost %g" % s,
+        ("n", "h", "solver", "jacobian_cost"))
 
     def lines_of(out):
         lines = ["# HHT's refresh of the Newton matrix by cost on the ball chains", "",

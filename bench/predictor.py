@@ -29,25 +29,10 @@ ATTRS = ("linear_solver_used", "jacobian_cost_used", "predictor_used")
 
 def main():
     a = chain_runs.parse_args(__doc__, STEPS)
-    refs = chain_runs.references(a.n)
     runs_of = [(n, h, solver, pred) for n in a.n for h in STEPS[n] for solver, pred in SETTINGS]
-    load_before = os.getloadavg()[0]
-
-    def one(model, s, out):
-        n, h, solver, pred = s
-        return chain_runs.simulate(a.mbdae, model, n, [
-            "--integrator", "hht", "--fixed-step", "--step", repr(h), "--linear-solver", solver,
-            "--predictor", pred], out, ATTRS)
-
-    runs = chain_runs.run_shuffled(a.n, runs_of, a.repeats, one,
-                                   lambda s: "N = %d, h = %g, %s, %s" % s)
-    rows = []
-    for s in runs_of:
-        n, h, solver, pred = s
-        row = {"n": n, "h": h, "solver": solver, "predictor": pred}
-        row.update(chain_runs.summary(runs[s], refs[n], ATTRS))
-        row["solver_times"] = [r["solver_time"] for r in runs[s] if r["status"] == "done"]
-        rows.append(row)
+    rows, load_before = chain_runs.hht_study(
+        a, runs_of, lambda s: ["--linear-solver", s[2], "--predictor", s[3]], ATTRS,
+        lambda s: "N = %d, h = %g, %s, %s" % s, ("n", "h", "solver", "predictor"))
 
     def lines_of(out):
         lines = ["# HHT's predictor of the Newton iteration on the ball chains", "",

@@ -345,6 +345,22 @@ TEST(BlockTreeLu, HhtWithTheTreeTakesTheSameStepsAsWithKlu) {
   }
 }
 
+// HHT with KLU and the options the tree's run `tree` resolved to (0.2 s): the same counts
+// (the refresh rule and the predictor see only iteration counts and states; to round-off,
+// which moves a count by one here or there) and q within 1e-10. Returns KLU's summary.
+Summary KluLikeTheTree(Consistent& c, const HhtOptions& klu_options, const Integrator& tree) {
+  auto klu = MakeHhtIntegrator(*c.kept, klu_options);
+  klu->Initialize(c.x);
+  EXPECT_TRUE(klu->AdvanceTo(0.2)) << klu->summary().message;
+  const Summary& sk = klu->summary();
+  const Summary& st = tree.summary();
+  EXPECT_EQ(sk.linear_solver, "klu");
+  EXPECT_NEAR(sk.newton_iterations, st.newton_iterations, 0.01 * st.newton_iterations);
+  EXPECT_NEAR(sk.factorizations, st.factorizations, 0.05 * st.factorizations);
+  EXPECT_LT(RelativeDifference(klu->state().q, tree.state().q), 1e-10);
+  return sk;
+}
+
 // The refresh by cost (HhtOptions::jacobian_cost; its default with the tree is
 // kTreeJacobianCost): on the 30-rod chain, fewer Newton iterations for more
 // factorisations, the work in iterations (iterations + cost x factorisations) lower than
@@ -381,13 +397,7 @@ TEST(BlockTreeLu, HhtRefreshesTheMatrixByCost) {
 
   HhtOptions klu_cost;
   klu_cost.jacobian_cost = cost;
-  auto klu = MakeHhtIntegrator(*c.kept, klu_cost);
-  klu->Initialize(c.x);
-  ASSERT_TRUE(klu->AdvanceTo(0.2)) << klu->summary().message;
-  EXPECT_EQ(klu->summary().jacobian_cost, cost);
-  EXPECT_NEAR(klu->summary().newton_iterations, st.newton_iterations, 0.01 * st.newton_iterations);
-  EXPECT_NEAR(klu->summary().factorizations, st.factorizations, 0.05 * st.factorizations);
-  EXPECT_LT(RelativeDifference(klu->state().q, by_cost.tree->state().q), 1e-10);
+  EXPECT_EQ(KluLikeTheTree(c, klu_cost, *by_cost.tree).jacobian_cost, cost);
 }
 
 // The linear predictor (HhtOptions::predictor; the tree's default): on the 30-rod chain
@@ -421,13 +431,7 @@ TEST(BlockTreeLu, HhtLinearPredictorSavesIterations) {
   HhtOptions klu_linear;
   klu_linear.jacobian_cost = cost;
   klu_linear.predictor = HhtOptions::Predictor::kLinear;
-  auto klu = MakeHhtIntegrator(*c.kept, klu_linear);
-  klu->Initialize(c.x);
-  ASSERT_TRUE(klu->AdvanceTo(0.2)) << klu->summary().message;
-  EXPECT_EQ(klu->summary().predictor, "linear");
-  EXPECT_NEAR(klu->summary().newton_iterations, s1.newton_iterations, 0.01 * s1.newton_iterations);
-  EXPECT_NEAR(klu->summary().factorizations, s1.factorizations, 0.05 * s1.factorizations);
-  EXPECT_LT(RelativeDifference(klu->state().q, linear.tree->state().q), 1e-10);
+  EXPECT_EQ(KluLikeTheTree(c, klu_linear, *linear.tree).predictor, "linear");
 }
 
 // A loop of bodies: KLU, and the reason; a loop closed through the ground (the four-bar of
