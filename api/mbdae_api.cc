@@ -28,6 +28,7 @@
 
 #include "api/session.h"
 #include "apps/cli.h"
+#include "dae/format.h"
 #include "dae/kinematic.h"
 #include "dae/klu_solver.h"
 #include "dae/sparse.h"
@@ -67,11 +68,7 @@ mbdae_status Call(F&& body) {
   }
 }
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 17); }
 
 mbdae_model& Handle(mbdae_model* model) {
   if (!model) throw ApiError(MBDAE_ERROR_ARGUMENT, "model is NULL");

@@ -1,5 +1,6 @@
 #include "apps/cli.h"
 
+#include "dae/format.h"
 #include "mbs/model_writer.h"
 
 #include <fcntl.h>
@@ -38,15 +39,7 @@ bool LooksLikeAssignment(const std::string& s) {
 }
 
 // Shortest of 15 or 17 significant digits that reads back exactly.
-std::string Num(double x) {
-  for (int digits : {15, 17}) {
-    std::ostringstream s;
-    s.precision(digits);
-    s << x;
-    if (digits == 17 || std::strtod(s.str().c_str(), nullptr) == x) return s.str();
-  }
-  return "0";
-}
+std::string Num(double x) { return FormatRoundTrip(x); }
 
 }  // namespace
 

@@ -66,6 +66,7 @@
 #include <string>
 #include <vector>
 
+#include "dae/format.h"
 #include "dae/mechanical_system.h"
 #include "driver/gradient.h"
 #include "driver/simulation.h"
@@ -99,12 +100,7 @@ long PeakRssKib() {
   return u.ru_maxrss;  // KiB on Linux
 }
 
-std::string Num(double x) {
-  if (!std::isfinite(x)) return "null";
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", x);
-  return b;
-}
+std::string Num(double x) { return std::isfinite(x) ? mbdae::FormatG(x, 17) : "null"; }
 
 std::string Str(const std::string& s) {
   std::string o = "\"";

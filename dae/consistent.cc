@@ -25,6 +25,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "dae/format.h"
 #include "dae/klu_solver.h"
 #include "dae/tree_kkt.h"
 
@@ -211,11 +212,7 @@ double MaxAbs(const std::vector<double>& x) {
   return m;
 }
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 3); }
 
 // The system with only some of its constraint equations.
 class KeptConstraints final : public MechanicalSystem {

@@ -10,16 +10,13 @@
 #include <vector>
 
 #include "dae/consistent.h"
+#include "dae/format.h"
 
 namespace mbdae::dae {
 
 namespace {
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 6); }
 
 // Dormand & Prince (1980), Hairer, Norsett, Wanner (1993) Table 5.2: nodes c, the
 // coupling coefficients A (lower triangle, row i has i entries), the 5th-order weights

@@ -55,6 +55,7 @@
 
 #include "dae/block_tree_lu.h"
 #include "dae/consistent.h"
+#include "dae/format.h"
 #include "dae/klu_solver.h"
 #include "dae/tree_kkt.h"
 
@@ -227,11 +228,7 @@ void HhtNewtonMatrix::AssembleFrom(double h, const std::vector<double>* mats,
 namespace {
 
 // A number for messages: %.6g (std::to_string prints 1e-12 as 0.000000).
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 6); }
 
 // Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'.
 // Gx(e, x) = G(e) x (x: 4), Gt(e, y) = G(e)^T y (y: 3). Both bilinear.

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "dae/consistent.h"
+#include "dae/format.h"
 #include "dae/klu_solver.h"
 
 namespace mbdae::dae {
@@ -30,11 +31,7 @@ bool KinematicOptions::IsValid(std::string* error) const {
 
 namespace {
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.9g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 9); }
 
 double MaxAbs(const std::vector<double>& x) {
   double m = 0;

@@ -15,6 +15,7 @@
 #include <set>
 #include <sstream>
 
+#include "dae/format.h"
 #include "io/results_file.h"
 #include "mbs/freedyn.h"
 #include "mbs/loader.h"
@@ -28,11 +29,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 double CpuSeconds() { return double(std::clock()) / CLOCKS_PER_SEC; }
 
-std::string Num(double x) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 10); }
 
 std::string JsonNumber(double x) {
   if (!std::isfinite(x)) return "null";

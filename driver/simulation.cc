@@ -1,5 +1,6 @@
 #include "driver/simulation.h"
 
+#include "dae/format.h"
 #include "sensitivities/model_objectives.h"
 #include "driver/determinacy.h"
 
@@ -27,12 +28,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-std::string Num(double x) {
-  std::ostringstream s;
-  s.precision(6);
-  s << x;
-  return s.str();
-}
+std::string Num(double x) { return FormatG(x, 6); }
 
 std::string Join(const std::vector<std::string>& names, const char* sep = ", ") {
   std::string out;

@@ -18,6 +18,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "dae/format.h"
 #include "dae/hht.h"
 #include "mbs/kinematics.h"
 #include "mbs/urdf.h"
@@ -39,14 +40,7 @@ std::string Lower(std::string s) {
 }
 
 // Shortest of 15 or 17 significant digits that reads back exactly.
-std::string Num(double x) {
-  for (int digits : {15, 17}) {
-    std::ostringstream s;
-    s << std::setprecision(digits) << x;
-    if (digits == 17 || std::strtod(s.str().c_str(), nullptr) == x) return s.str();
-  }
-  return "0";
-}
+std::string Num(double x) { return FormatRoundTrip(x); }
 
 // A large count in three significant digits: 1e+12.
 std::string Rounded(double v) {

@@ -23,6 +23,7 @@
 #include <unordered_map>
 #include <utility>
 
+#include "dae/format.h"
 #include "dae/hht.h"
 #include "mbs/freedyn.h"  // LoadAnyModel, for `extends:`
 #include "mbs/geometry.h"
@@ -43,12 +44,7 @@ std::string FormatError(const SourceLocation& where, const std::string& element,
   return s.str();
 }
 
-std::string Num(double v) {
-  if (std::isnan(v)) return "nan";
-  std::ostringstream s;
-  s << std::setprecision(10) << v;
-  return s.str();
-}
+std::string Num(double v) { return std::isnan(v) ? "nan" : FormatG(v, 10); }
 
 // A large count in three significant digits: 1e+12.
 std::string Rounded(double v) {

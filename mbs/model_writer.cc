@@ -1,6 +1,7 @@
 // mbs::Model -> model file text (YAML, format 1). See model_writer.h.
 #include "mbs/model_writer.h"
 
+#include "dae/format.h"
 #include "mbs/user_force.h"
 
 #include <cmath>
@@ -40,15 +41,7 @@ std::string DoubleQuoted(const std::string& s) {
 namespace {
 
 // Shortest of 15 or 17 significant digits that reads back exactly.
-std::string Num(double x) {
-  if (x == 0) return "0";  // also -0
-  for (int digits : {15, 17}) {
-    std::ostringstream s;
-    s << std::setprecision(digits) << x;
-    if (digits == 17 || std::strtod(s.str().c_str(), nullptr) == x) return s.str();
-  }
-  return "0";
-}
+std::string Num(double x) { return x == 0 ? "0" : FormatRoundTrip(x); }  // -0 too
 
 // A YAML double-quoted scalar (JSON string syntax, which YAML reads alike).
 std::string Quoted(const std::string& s) { return DoubleQuoted(s); }

@@ -14,16 +14,13 @@
 #include <stdexcept>
 #include <utility>
 
+#include "dae/format.h"
+
 namespace mbdae::mbs {
 
 namespace {
 
-std::string Num(double v) {
-  if (std::isnan(v)) return "nan";
-  std::ostringstream s;
-  s << std::setprecision(17) << v;
-  return s.str();
-}
+std::string Num(double v) { return std::isnan(v) ? "nan" : FormatG(v, 17); }
 
 }  // namespace
 

@@ -21,17 +21,14 @@
 #include <set>
 #include <sstream>
 
+#include "dae/format.h"
 #include "mbs/kinematics.h"
 
 namespace mbdae::mbs {
 
 namespace {
 
-std::string Num(double v) {
-  std::ostringstream s;
-  s << std::setprecision(10) << v;
-  return s.str();
-}
+std::string Num(double v) { return FormatG(v, 10); }
 
 // urdfdom reports through console_bridge; its errors are collected while it parses and
 // become the message of the ModelError. console_bridge's handler is global: one parse at

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "dae/format.h"
 #include "sensitivities/hht_sensitivity.h"
 
 namespace mbdae::sens {
@@ -18,11 +19,7 @@ namespace {
 constexpr size_t kBlockBytes = 64 * 1024;
 constexpr size_t kMinCheckpoints = 16;
 
-std::string Num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 6); }
 
 }  // namespace
 

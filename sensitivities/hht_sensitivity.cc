@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "dae/format.h"
 #include "dae/klu_solver.h"
 #include "sensitivities/system_matrices.h"
 
@@ -378,11 +379,7 @@ class Sweeps {
     return true;
   }
 
-  static std::string Num(double x) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g", x);
-    return buf;
-  }
+  static std::string Num(double x) { return FormatG(x, 6); }
   // The objectives' parts at state n: adds w_n g (+ phi when terminal) to values, and
   // for each objective j with a part there, lets it add the gradient of w_n g_j
   // (+ phi_j) into the buffers of target(j) (an ObjectiveGradient), then calls done(j).

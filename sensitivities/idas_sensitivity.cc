@@ -17,6 +17,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "dae/format.h"
 #include "dae/ida_internal.h"
 #include "dae/sundials_owners.h"
 #include "dae/sparse.h"
@@ -82,11 +83,7 @@ class VectorArray {
   int count_ = 0;
 };
 
-std::string Num(double x) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", x);
-  return buf;
-}
+std::string Num(double x) { return FormatG(x, 17); }
 
 // The gradient of one objective (unit weight) at a point, dense.
 struct PointGradient {
