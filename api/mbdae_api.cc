@@ -22,6 +22,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <new>
 #include <string>
 #include <vector>
@@ -467,11 +468,22 @@ double ParseOptionNumber(const std::string& key, const char* value) {
 
 namespace {
 
-bool ParseOptionBool(const std::string& key, const char* value) {
+// value if it is one of choices, else an ApiError "option KEY: expected A, B or C, got 'V'".
+std::string ParseOptionChoice(const std::string& key, const char* value,
+                              std::initializer_list<const char*> choices) {
   const std::string v = value;
-  if (v == "true") return true;
-  if (v == "false") return false;
-  throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected true or false, got '" + v + "'");
+  std::string expected;
+  size_t i = 0;
+  for (const char* c : choices) {
+    if (v == c) return v;
+    expected += (i == 0 ? "" : i + 1 == choices.size() ? " or " : ", ") + std::string(c);
+    ++i;
+  }
+  throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected " + expected + ", got '" + v + "'");
+}
+
+bool ParseOptionBool(const std::string& key, const char* value) {
+  return ParseOptionChoice(key, value, {"true", "false"}) == "true";
 }
 
 [[noreturn]] void UnknownOption(const std::string& key) {
@@ -487,17 +499,11 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
   } else if (key == "output_step") {
     o.output_step = ParseOptionNumber(key, value);
   } else if (key == "integrator") {
-    const std::string v = value;
-    if (v == "hht")
-      o.integrator = mbs::IntegratorKind::kHht;
-    else if (v == "ida")
-      o.integrator = mbs::IntegratorKind::kIda;
-    else if (v == "kinematic")
-      o.integrator = mbs::IntegratorKind::kKinematic;
-    else if (v == "erk")
-      o.integrator = mbs::IntegratorKind::kErk;
-    else
-      throw ApiError(MBDAE_ERROR_INPUT, "option integrator: expected hht, ida, kinematic or erk, got '" + v + "'");
+    const std::string v = ParseOptionChoice(key, value, {"hht", "ida", "kinematic", "erk"});
+    o.integrator = v == "hht"   ? mbs::IntegratorKind::kHht
+                   : v == "ida" ? mbs::IntegratorKind::kIda
+                   : v == "erk" ? mbs::IntegratorKind::kErk
+                                : mbs::IntegratorKind::kKinematic;
   } else if (key == "hht.alpha") {
     o.hht_alpha = ParseOptionNumber(key, value);
   } else if (key == "hht.step") {
@@ -520,23 +526,12 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
   } else if (key == "ida.dense_output") {
     o.ida_dense_output = ParseOptionBool(key, value);
   } else if (key == "hht.form") {
-    const std::string v = value;
-    if (v != "equilibrium" && v != "negrut")
-      throw ApiError(MBDAE_ERROR_INPUT,
-                     "option hht.form: expected equilibrium or negrut, got '" + v + "'");
-    o.hht_form = v;
+    o.hht_form = ParseOptionChoice(key, value, {"equilibrium", "negrut"});
   } else if (key == "hht.predictor") {
-    const std::string v = value;
-    if (v != "auto" && v != "constant" && v != "linear")
-      throw ApiError(MBDAE_ERROR_INPUT,
-                     "option hht.predictor: expected auto, constant or linear, got '" + v + "'");
-    o.hht_predictor = v;
+    o.hht_predictor = ParseOptionChoice(key, value, {"auto", "constant", "linear"});
   } else if (key == "hht.linear_solver" || key == "ida.linear_solver") {
-    const std::string v = value;
-    if (v != "klu" && v != "tree")
-      throw ApiError(MBDAE_ERROR_INPUT,
-                     "option " + key + ": expected klu or tree, got '" + v + "'");
-    (key == "hht.linear_solver" ? o.hht_linear_solver : o.ida_linear_solver) = v;
+    (key == "hht.linear_solver" ? o.hht_linear_solver : o.ida_linear_solver) =
+        ParseOptionChoice(key, value, {"klu", "tree"});
   } else if (key == "ida.rtol") {
     o.ida_rtol = ParseOptionNumber(key, value);
   } else if (key == "ida.atol") {
