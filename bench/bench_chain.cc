@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/hht_windows.h"
 #include "dae/consistent.h"
 #include "dae/hht.h"
 #include "dae/klu_solver.h"
@@ -280,38 +281,14 @@ void BM_HhtStep(benchmark::State& state) {
     rejected += s.steps_rejected - sum_base.steps_rejected;
     noise += s.newton_noise_stops - sum_base.newton_noise_stops;
   };
-  auto restart = [&]() -> bool {
-    integ->Initialize(c.x0);
-    if (!integ->AdvanceTo(c.x0.t + kWarmupSteps * kStep)) return false;
+  auto start = [&]() {
     sum_base = integ->summary();
     res_base = timed.residual_seconds;
     jac_base = timed.jacobian_seconds;
-    return true;
   };
-  if (!restart()) {
-    state.SkipWithError(integ->summary().message.c_str());
+  if (!mbdae::bench::TimeHhtWindows(state, *integ, c.x0, kStep, kWarmupSteps, kWindowSteps,
+                                    start, close_window))
     return;
-  }
-  int in_window = 0;
-  for (auto _ : state) {
-    if (in_window == kWindowSteps) {
-      state.PauseTiming();
-      close_window();
-      const bool ok = restart();
-      in_window = 0;
-      state.ResumeTiming();
-      if (!ok) {
-        state.SkipWithError(integ->summary().message.c_str());
-        break;
-      }
-    }
-    if (!integ->AdvanceTo(integ->state().t + kStep)) {
-      state.SkipWithError(integ->summary().message.c_str());
-      break;
-    }
-    ++in_window;
-  }
-  close_window();
   SizeCounters(state, c);
   using benchmark::Counter;
   state.counters["newton_per_step"] = Counter(newton, Counter::kAvgIterations);

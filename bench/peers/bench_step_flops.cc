@@ -46,6 +46,7 @@
 #include <vector>
 
 #include "dae/block_tree_lu.h"
+#include "bench/hht_windows.h"
 #include "dae/consistent.h"
 #include "dae/hht.h"
 #include "dae/klu_solver.h"
@@ -182,36 +183,9 @@ void TimeHhtSteps(benchmark::State& state, Chain& c, const dae::HhtOptions& hht)
     jacobian += s.jacobian_evaluations - base.jacobian_evaluations;
     rejected += s.steps_rejected - base.steps_rejected;
   };
-  auto restart = [&]() -> bool {
-    integ->Initialize(c.x0);
-    if (!integ->AdvanceTo(c.x0.t + kWarmupSteps * kStep)) return false;
-    base = integ->summary();
-    return true;
-  };
-  if (!restart()) {
-    state.SkipWithError(integ->summary().message.c_str());
+  if (!mbdae::bench::TimeHhtWindows(state, *integ, c.x0, kStep, kWarmupSteps, kWindowSteps,
+                                    [&]() { base = integ->summary(); }, close_window))
     return;
-  }
-  int in_window = 0;
-  for (auto _ : state) {
-    if (in_window == kWindowSteps) {
-      state.PauseTiming();
-      close_window();
-      const bool ok = restart();
-      in_window = 0;
-      state.ResumeTiming();
-      if (!ok) {
-        state.SkipWithError(integ->summary().message.c_str());
-        break;
-      }
-    }
-    if (!integ->AdvanceTo(integ->state().t + kStep)) {
-      state.SkipWithError(integ->summary().message.c_str());
-      break;
-    }
-    ++in_window;
-  }
-  close_window();
   if (integ->summary().klu_fallbacks > 0) state.SkipWithError("the tree fell back to KLU");
   SizeCounters(state, c);
   using benchmark::Counter;
