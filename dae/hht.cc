@@ -281,12 +281,7 @@ class HhtIntegrator final : public Integrator {
                                                sys_.pattern(Matrix::kConstraintDq),
                                                kMaxTreeNode, &tree_refusal_);
     if (!tree_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
-    jacobian_cost_ = opt_.jacobian_cost >= 0 ? opt_.jacobian_cost
-                     : tree_                 ? HhtOptions::kTreeJacobianCost
-                                             : 0.0;
-    linear_predictor_ = opt_.predictor == HhtOptions::Predictor::kAuto
-                            ? tree_ != nullptr
-                            : opt_.predictor == HhtOptions::Predictor::kLinear;
+    ResolveSolverDefaults();
 
     const int n = nq_ + nc_;
     for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_, &a_prev_})
@@ -312,9 +307,7 @@ class HhtIntegrator final : public Integrator {
                                   std::to_string(nq_) + ", nc = " + std::to_string(nc_) + ")");
     state_ = x0;
     summary_ = Summary();
-    summary_.linear_solver = LinearSolverReport();
-    summary_.jacobian_cost = jacobian_cost_;
-    summary_.predictor = PredictorName();
+    SolverSummary();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = x0.t;
     h_prev_ = 0;
@@ -413,9 +406,7 @@ class HhtIntegrator final : public Integrator {
       throw std::invalid_argument("HHT::RestoreSnapshot: the snapshot's step sizes or step count are invalid");
     state_ = s;
     summary_ = Summary();
-    summary_.linear_solver = LinearSolverReport();
-    summary_.jacobian_cost = jacobian_cost_;
-    summary_.predictor = PredictorName();
+    SolverSummary();
     summary_.status = Summary::Status::kRunning;
     summary_.t_reached = s.t;
     h_prev_ = hist[HhtHistory::kHPrev];
@@ -874,12 +865,8 @@ class HhtIntegrator final : public Integrator {
       if (!tree_rule_.seen_usable()) {
         tree_.reset();
         tree_refusal_ = "the first factorisation's pivots were unusable";
-        summary_.linear_solver = LinearSolverReport();
-        if (opt_.jacobian_cost < 0) jacobian_cost_ = summary_.jacobian_cost = 0;  // KLU's rules
-        if (opt_.predictor == HhtOptions::Predictor::kAuto) {
-          linear_predictor_ = false;
-          summary_.predictor = PredictorName();
-        }
+        ResolveSolverDefaults();  // KLU's refresh rules and predictor from here on
+        SolverSummary();
       }
     }
     if (!klu_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
@@ -1054,9 +1041,24 @@ class HhtIntegrator final : public Integrator {
     }
   }
 
-  const char* PredictorName() const {
-    return HhtPredictorName(linear_predictor_ ? HhtOptions::Predictor::kLinear
-                                              : HhtOptions::Predictor::kConstant);
+  // The options whose `auto` depends on the linear solver (jacobian_cost, predictor),
+  // resolved for the one that factorises now: the tree's defaults while tree_ is set,
+  // KLU's once it is not (from the start, or when KLU takes over for good).
+  void ResolveSolverDefaults() {
+    jacobian_cost_ = opt_.jacobian_cost >= 0 ? opt_.jacobian_cost
+                     : tree_                 ? HhtOptions::kTreeJacobianCost
+                                             : 0.0;
+    linear_predictor_ = opt_.predictor == HhtOptions::Predictor::kAuto
+                            ? tree_ != nullptr
+                            : opt_.predictor == HhtOptions::Predictor::kLinear;
+  }
+
+  // The summary's account of the linear solver and the options resolved for it.
+  void SolverSummary() {
+    summary_.linear_solver = LinearSolverReport();
+    summary_.jacobian_cost = jacobian_cost_;
+    summary_.predictor = HhtPredictorName(linear_predictor_ ? HhtOptions::Predictor::kLinear
+                                                            : HhtOptions::Predictor::kConstant);
   }
 
   // The matrix's refresh by cost (HhtOptions::jacobian_cost, c > 0): the k-th step on a
