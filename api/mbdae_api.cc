@@ -266,6 +266,7 @@ void AddCounters(const dae::Summary& from, dae::Summary* to) {
   if (!from.linear_solver.empty()) to->linear_solver = from.linear_solver;
   if (from.jacobian_cost >= 0) to->jacobian_cost = from.jacobian_cost;
   if (!from.predictor.empty()) to->predictor = from.predictor;
+  if (!from.rotation_jacobian.empty()) to->rotation_jacobian = from.rotation_jacobian;
 }
 
 // Adds the counters of the current integrator to finished_counters and drops it.
@@ -450,7 +451,7 @@ int Count(mbdae_model& m, mbdae_kind kind) {
 
 const char* const kOptionKeys =
     "t_end, output_step, integrator, hht.alpha, hht.step, hht.adaptive, hht.tolerance, "
-    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, hht.jacobian_cost, hht.predictor, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
+    "hht.modified, hht.form, hht.dense_output, hht.newton_tolerance, hht.linear_solver, hht.jacobian_cost, hht.predictor, hht.rotation_jacobian, ida.rtol, ida.atol, ida.max_steps, ida.min_step, ida.dense_output, ida.linear_solver, "
     "erk.rtol, erk.atol, erk.max_steps, erk.min_step, erk.max_step, output.bodies, output.joints, output.forces, "
     "output.measures, gradient.fd_step, gradient.newton_factor, "
     "gradient.trajectory_memory, gradient.ida_checkpoint_steps";
@@ -529,6 +530,8 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
     o.hht_form = ParseOptionChoice(key, value, {"equilibrium", "negrut"});
   } else if (key == "hht.predictor") {
     o.hht_predictor = ParseOptionChoice(key, value, {"auto", "constant", "linear"});
+  } else if (key == "hht.rotation_jacobian") {
+    o.hht_rotation_jacobian = ParseOptionChoice(key, value, {"auto", "first-order", "exact"});
   } else if (key == "hht.linear_solver" || key == "ida.linear_solver") {
     (key == "hht.linear_solver" ? o.hht_linear_solver : o.ida_linear_solver) =
         ParseOptionChoice(key, value, {"klu", "tree"});
@@ -605,6 +608,7 @@ std::string GetOption(const mbdae_model& m, const std::string& key) {
   if (key == "hht.form") return s.hht_form;
   if (key == "hht.linear_solver") return s.hht_linear_solver;
   if (key == "hht.predictor") return s.hht_predictor;
+  if (key == "hht.rotation_jacobian") return s.hht_rotation_jacobian;
   if (key == "ida.linear_solver") return s.ida_linear_solver;
   if (key == "ida.rtol") return Num(s.ida_rtol);
   if (key == "ida.atol") return Num(s.ida_atol);

@@ -232,6 +232,9 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
     } else if (arg == "--predictor") {
       only_simulate();
       cl.overrides.hht_predictor = choice({"auto", "constant", "linear"});
+    } else if (arg == "--rotation-jacobian") {
+      only_simulate();
+      cl.overrides.hht_rotation_jacobian = choice({"auto", "first-order", "exact"});
     } else if (arg == "--linear-solver") {
       only_simulate();
       cl.overrides.hht_linear_solver = cl.overrides.ida_linear_solver = choice({"klu", "tree"});

@@ -34,8 +34,10 @@
 // Newmark's for the rotation angle: with alpha = 0 a constant moment gives
 // omega_{n+1} = omega_n + h M / J exactly (trapezoidal rule on a constant). The
 // dependence of e_{n+1} on G(e_{n+1}) is resolved inside the Newton iteration (G is
-// taken at the previous iterate); the Newton matrix is the classical one, which is the
-// first-order approximation of the modified map (dq/da = beta h^2 I, dv/da = gamma h I).
+// taken at the previous iterate). The Newton matrix is either the classical one, the
+// first-order approximation of the modified map (dq/da = beta h^2 I, dv/da = gamma h I),
+// or, with HhtOptions::rotation_jacobian exact, the map's own 4 x 4 blocks per group
+// (dae/hht_rotation.h; the tree elimination's default).
 // In the kEquilibrium form omega' is replaced by the acceleration-like body quantity
 // omegabar'_{n+1} = (1 + alpha) 2 G(e_{n+1}) a_{n+1} - alpha 2 G(e_n) a_n (stored per
 // group; omegabar'_0 = 2 G(e_0) a_0), and rho = (1 + alpha) beta h^2 s, the radial
@@ -56,6 +58,7 @@
 #include "dae/block_tree_lu.h"
 #include "dae/consistent.h"
 #include "dae/format.h"
+#include "dae/hht_rotation.h"
 #include "dae/klu_solver.h"
 #include "dae/tree_kkt.h"
 
@@ -124,6 +127,10 @@ constexpr NameTable<HhtOptions::Predictor> kPredictorNames = {
     {"auto", HhtOptions::Predictor::kAuto},
     {"constant", HhtOptions::Predictor::kConstant},
     {"linear", HhtOptions::Predictor::kLinear}};
+constexpr NameTable<HhtOptions::RotationJacobian> kRotationJacobianNames = {
+    {"auto", HhtOptions::RotationJacobian::kAuto},
+    {"first-order", HhtOptions::RotationJacobian::kFirstOrder},
+    {"exact", HhtOptions::RotationJacobian::kExact}};
 constexpr NameTable<HhtOptions::LinearSolver> kLinearSolverNames = {
     {"klu", HhtOptions::LinearSolver::kKlu}, {"tree", HhtOptions::LinearSolver::kTree}};
 
@@ -143,6 +150,12 @@ const char* HhtPredictorName(HhtOptions::Predictor predictor) {
 bool ParseHhtPredictor(const std::string& name, HhtOptions::Predictor* predictor) {
   return ParseName(name, kPredictorNames, predictor);
 }
+const char* HhtRotationJacobianName(HhtOptions::RotationJacobian jacobian) {
+  return NameOf(jacobian, kRotationJacobianNames);
+}
+bool ParseHhtRotationJacobian(const std::string& name, HhtOptions::RotationJacobian* jacobian) {
+  return ParseName(name, kRotationJacobianNames, jacobian);
+}
 const char* HhtLinearSolverName(HhtOptions::LinearSolver solver) {
   return NameOf(solver, kLinearSolverNames);
 }
@@ -150,7 +163,8 @@ bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* sol
   return ParseName(name, kLinearSolverNames, solver);
 }
 
-HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options)
+HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options,
+                                 bool rotation_blocks)
     : system_(system) {
   const int nq = system_.num_coordinates(), nc = system_.num_constraints();
   alpha_ = options.alpha;
@@ -188,12 +202,50 @@ HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& opt
   std::vector<std::pair<int, int>> diag;
   for (int i = 0; i < nq + nc; ++i) diag.push_back({i, i});
   assembler_.AddEntries(diag);
+  // The matrices whose columns meet dq/da or dv/da, and the row of their block.
+  const std::pair<Matrix, int> rotated[] = {
+      {Matrix::kMassTimesAccDq, 0}, {Matrix::kConstraintTDq, 0}, {Matrix::kForceDq, 0},
+      {Matrix::kForceDv, 0},        {Matrix::kConstraintDq, nq}};
+  const std::vector<int>& groups = system_.quaternion_offsets();
+  std::vector<int> group_of(rotation_blocks && options.modified ? nq : 0, -1);
+  for (size_t grp = 0; grp < groups.size() && !group_of.empty(); ++grp)
+    for (int k = 0; k < 4; ++k) group_of[groups[grp] + k] = static_cast<int>(grp);
+  rotation_blocks_ = !group_of.empty() && !groups.empty();
+  if (!group_of.empty()) {
+    std::vector<std::pair<int, int>> fill;
+    for (const auto& [m, row0] : rotated) {
+      const CscPattern& p = system_.pattern(m);
+      for (int c = 0; c < nq; ++c)
+        if (group_of[c] >= 0)
+          for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k)
+            for (int j = 0; j < 4; ++j)
+              fill.push_back({row0 + p.row_index[k], groups[group_of[c]] + j});
+    }
+    assembler_.AddEntries(fill);
+  }
   assembler_.Finalize(nq + nc, nq + nc);
+  if (!group_of.empty()) {
+    const CscPattern& result = assembler_.pattern();
+    for (const auto& [m, row0] : rotated) {
+      const CscPattern& p = system_.pattern(m);
+      auto& list = rot_entries_[static_cast<int>(m)];
+      for (int c = 0; c < nq; ++c) {
+        const int grp = group_of[c];
+        if (grp < 0) continue;
+        for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k) {
+          RotationEntry e{k, grp, c - groups[grp], {}};
+          for (int j = 0; j < 4; ++j)
+            e.pos[j] = result.find(row0 + p.row_index[k], groups[grp] + j);
+          list.push_back(e);
+        }
+      }
+    }
+  }
 }
 
 int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double* v,
                               const double* a, const double* lambda, double* values,
-                              double* force, double* constraint) {
+                              double* force, double* constraint, const double* rotation) {
   EvalInput in;
   in.t = t;
   in.q = q;
@@ -207,22 +259,45 @@ int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double*
     if (m != static_cast<int>(Matrix::kConstraintVelDq)) out.matrix[m] = mat_[m].data();
   const int rc = system_.Evaluate(in, out);
   if (rc != 0) return rc;
-  AssembleFrom(h, mat_, values);
+  AssembleFrom(h, mat_, values, rotation);
   return 0;
 }
 
-void HhtNewtonMatrix::AssembleFrom(double h, const std::vector<double>* mats,
-                                   double* values) const {
+void HhtNewtonMatrix::AssembleFrom(double h, const std::vector<double>* mats, double* values,
+                                   const double* rotation) const {
   auto M = [&](Matrix m) { return mats[static_cast<int>(m)].data(); };
   const double s = 1 / (1 + alpha_), bh2 = beta_ * h * h;
+  // The blocks whose columns carry dq/da or dv/da, with their scales (the first-order
+  // factors of dq/da and dv/da included). The blocks of the top left overlap and are
+  // summed in this order; C_q^T and C_q overlap nothing.
+  struct Term {
+    int block;
+    Matrix m;
+    double scale;
+  };
+  const Term terms[] = {{b_kma_, Matrix::kMassTimesAccDq, equilibrium_ ? bh2 : bh2 * s},
+                        {b_kc_, Matrix::kConstraintTDq, bh2},
+                        {b_qq_, Matrix::kForceDq, -bh2},
+                        {b_qv_, Matrix::kForceDv, -gamma_ * h},
+                        {b_cq_, Matrix::kConstraintDq, 1.0}};
   assembler_.SetZero(values);
   assembler_.Accumulate(b_mass_, M(Matrix::kMass), s, values);
-  assembler_.Accumulate(b_kma_, M(Matrix::kMassTimesAccDq), equilibrium_ ? bh2 : bh2 * s, values);
-  assembler_.Accumulate(b_kc_, M(Matrix::kConstraintTDq), bh2, values);
-  assembler_.Accumulate(b_qq_, M(Matrix::kForceDq), -bh2, values);
-  assembler_.Accumulate(b_qv_, M(Matrix::kForceDv), -gamma_ * h, values);
+  for (const Term& t : terms) assembler_.Accumulate(t.block, M(t.m), t.scale, values);
   assembler_.Accumulate(b_cqt_, M(Matrix::kConstraintDq), equilibrium_ ? s : 1.0, values);
-  assembler_.Accumulate(b_cq_, M(Matrix::kConstraintDq), 1.0, values);
+  if (!rotation) return;
+  if (!has_rotation_blocks())
+    throw std::logic_error("HhtNewtonMatrix: rotation blocks given, but its pattern has no room for them");
+  // Column j of a group: the sum over the group's columns c of B[:, c] (R - I)[c][j], B
+  // with its scale, R = dq/da / (mix beta h^2) (dv/da / (mix gamma h) for Q_v).
+  for (const Term& t : terms) {
+    const double* b = M(t.m);
+    const int off = t.m == Matrix::kForceDv ? 16 : 0;
+    for (const RotationEntry& e : rot_entries_[static_cast<int>(t.m)]) {
+      const double* r = rotation + 32 * e.group + off + 4 * e.col;
+      const double x = t.scale * b[e.k];
+      for (int j = 0; j < 4; ++j) values[e.pos[j]] += x * r[j];
+    }
+  }
 }
 
 namespace {
@@ -251,10 +326,21 @@ inline void QuatMul(const double* p, const double* r, double* out) {
   out[3] = p[0] * r[3] + p[1] * r[2] - p[2] * r[1] + p[3] * r[0];
 }
 
+// Whether the Newton matrix may take the exact rotation blocks (HhtOptions::
+// rotation_jacobian): room for them in its pattern.
+bool WantsRotationBlocks(const HhtOptions& o) {
+  using R = HhtOptions::RotationJacobian;
+  return o.modified && (o.rotation_jacobian == R::kExact ||
+                        (o.rotation_jacobian == R::kAuto &&
+                         o.linear_solver == HhtOptions::LinearSolver::kTree));
+}
+
 class HhtIntegrator final : public Integrator {
  public:
   HhtIntegrator(MechanicalSystem& system, const HhtOptions& options)
-      : sys_(system), opt_(options), newton_(system, options) {
+      : sys_(system),
+        opt_(options),
+        newton_(std::make_unique<HhtNewtonMatrix>(system, options, WantsRotationBlocks(options))) {
     std::string err;
     if (!opt_.IsValid(&err)) throw std::invalid_argument(err);
     nq_ = sys_.num_coordinates();
@@ -275,12 +361,15 @@ class HhtIntegrator final : public Integrator {
     // and the Newton matrix with its factorisation.
     for (Matrix m : {Matrix::kMass, Matrix::kConstraintDq})
       mat_[static_cast<int>(m)].assign(sys_.pattern(m).nnz(), 0.0);
-    jac_.assign(newton_.pattern().nnz(), 0.0);
+    jac_.assign(newton_->pattern().nnz(), 0.0);
     if (opt_.linear_solver == HhtOptions::LinearSolver::kTree)
-      tree_ = BlockTreeLu::ForMechanicalSystem(newton_.pattern(), sys_.pattern(Matrix::kMass),
+      tree_ = BlockTreeLu::ForMechanicalSystem(newton_->pattern(), sys_.pattern(Matrix::kMass),
                                                sys_.pattern(Matrix::kConstraintDq),
                                                kMaxTreeNode, &tree_refusal_);
-    if (!tree_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
+    if (!tree_) {
+      DropRotationRoom(0);
+      klu_ = std::make_unique<KluSolver>(newton_->pattern());
+    }
     ResolveSolverDefaults();
 
     const int n = nq_ + nc_;
@@ -289,6 +378,7 @@ class HhtIntegrator final : public Integrator {
     const size_t ng = sys_.quaternion_offsets().size();
     wbar_.assign(3 * ng, 0.0);
     wbar_new_.assign(3 * ng, 0.0);
+    rotation_.assign(32 * ng, 0.0);
     for (auto* v : {&lamn_, &con_, &lam_prev_}) v->assign(nc_, 0.0);
     res_.assign(n, 0.0);
     x_.assign(n, 0.0);
@@ -791,8 +881,8 @@ class HhtIntegrator final : public Integrator {
     ++summary_.residual_evaluations;
     if (evaluated_) {
       evaluated_ = false;
-      mass = newton_.matrix(Matrix::kMass).data();
-      cq = newton_.matrix(Matrix::kConstraintDq).data();
+      mass = newton_->matrix(Matrix::kMass).data();
+      cq = newton_->matrix(Matrix::kConstraintDq).data();
     } else {
       EvalInput in;
       in.t = t1;
@@ -828,19 +918,25 @@ class HhtIntegrator final : public Integrator {
   // the residual had its own evaluation.
   int NewtonMatrix(double t1, double h, std::string* error) {
     evaluated_ = false;
-    int rc = newton_.Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(),
-                              jac_.data(), force_.data(), con_.data());
+    const double* rotation = nullptr;
+    if (exact_rotation_) {
+      RotationBlocks(h);
+      rotation = rotation_.data();
+    }
+    int rc = newton_->Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(),
+                              jac_.data(), force_.data(), con_.data(), rotation);
     if (rc == 0)
       evaluated_ = true;
     else
-      rc = newton_.Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(), jac_.data());
+      rc = newton_->Assemble(t1, h, qn_.data(), vn_.data(), an_.data(), lamn_.data(), jac_.data(),
+                            nullptr, nullptr, rotation);
     ++summary_.jacobian_evaluations;
     if (rc != 0) {
       *error = sys_.last_error();
       return rc;
     }
     ++summary_.factorizations;
-    if (!FactorNewtonMatrix(error)) return 1;
+    if (!FactorNewtonMatrix(h, error)) return 1;
     jacobian_valid_ = true;
     jacobian_fresh_ = true;
     jacobian_h_ = h;
@@ -850,11 +946,46 @@ class HhtIntegrator final : public Integrator {
     return 0;
   }
 
+  // The exact rotation blocks of the Newton matrix at the current iterate (HhtNewtonMatrix::
+  // Assemble): per group dq/da / (mix beta h^2) - I and dv/da / (mix gamma h) - I, with
+  // G(e_{n+1}) at the iterate's e_{n+1} (the fixed point, dae/hht_rotation.h).
+  void RotationBlocks(double h) {
+    using L = HhtRotationLayout;
+    HhtRotationScheme sc;
+    sc.alpha = alpha_;
+    sc.beta = beta_;
+    sc.gamma = gamma_;
+    sc.mix = mix_;
+    sc.equilibrium = equilibrium_;
+    const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
+    const double cq = 1 / (mix_ * beta_ * h * h), cv = 1 / (mix_ * gamma_ * h);
+    const std::vector<int>& groups = sys_.quaternion_offsets();
+    for (size_t grp = 0; grp < groups.size(); ++grp) {
+      const int g = groups[grp];
+      double x[L::kInputs];
+      for (int k = 0; k < 4; ++k) {
+        x[L::kE0 + k] = state_.q[g + k];
+        x[L::kEd0 + k] = state_.v[g + k];
+        x[L::kA0 + k] = state_.a[g + k];
+        x[L::kA1 + k] = an_[g + k];
+        x[L::kEIter + k] = qn_[g + k];
+      }
+      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
+      double* rq = &rotation_[32 * grp];
+      double* rv = rq + 16;
+      HhtRotationDerivative(sc, h, r, x, rq, rv);
+      for (int i = 0; i < 16; ++i) {
+        rq[i] = rq[i] * cq - (i % 5 == 0 ? 1 : 0);
+        rv[i] = rv[i] * cv - (i % 5 == 0 ? 1 : 0);
+      }
+    }
+  }
+
   // Factorises jac_: by the block tree elimination when it was set up and its pivots are
   // usable (TreePivotRule, as AccelerationSolver for dae/tree_kkt.h), else by KLU, which
   // takes over for good when the very first tree factorisation fails (e.g. a loop
   // closed through the ground, which the forest does not see).
-  bool FactorNewtonMatrix(std::string* error) {
+  bool FactorNewtonMatrix(double h, std::string* error) {
     use_tree_ = false;
     if (tree_) {
       if (tree_->Factor(jac_.data()) && tree_rule_.Accept(tree_->rcond())) {
@@ -864,13 +995,29 @@ class HhtIntegrator final : public Integrator {
       ++summary_.klu_fallbacks;
       if (!tree_rule_.seen_usable()) {
         tree_.reset();
+        DropRotationRoom(h);
         tree_refusal_ = "the first factorisation's pivots were unusable";
         ResolveSolverDefaults();  // KLU's refresh rules and predictor from here on
         SolverSummary();
       }
     }
-    if (!klu_) klu_ = std::make_unique<KluSolver>(newton_.pattern());
+    if (!klu_) klu_ = std::make_unique<KluSolver>(newton_->pattern());
     return klu_->Factor(jac_.data(), error);
+  }
+  // KLU for good while the Newton matrix has room for rotation blocks that only the tree's
+  // default (auto) asked for: a matrix without that room, so that the run is KLU's own
+  // (pattern, first-order matrix and all). With h > 0 (a refresh of step h under way)
+  // the new matrix is assembled from the old one's evaluation, and the residual makes its
+  // own.
+  void DropRotationRoom(double h) {
+    if (!newton_->has_rotation_blocks() ||
+        opt_.rotation_jacobian == HhtOptions::RotationJacobian::kExact)
+      return;
+    auto plain = std::make_unique<HhtNewtonMatrix>(sys_, opt_, false);
+    jac_.assign(plain->pattern().nnz(), 0.0);
+    if (h > 0) plain->AssembleFrom(h, newton_->matrices(), jac_.data());
+    newton_ = std::move(plain);
+    evaluated_ = false;
   }
   void SolveNewton(double* x) const {
     if (use_tree_)
@@ -1051,6 +1198,9 @@ class HhtIntegrator final : public Integrator {
     linear_predictor_ = opt_.predictor == HhtOptions::Predictor::kAuto
                             ? tree_ != nullptr
                             : opt_.predictor == HhtOptions::Predictor::kLinear;
+    exact_rotation_ = newton_->has_rotation_blocks() &&
+                      (opt_.rotation_jacobian == HhtOptions::RotationJacobian::kExact ||
+                       (opt_.rotation_jacobian == HhtOptions::RotationJacobian::kAuto && tree_));
   }
 
   // The summary's account of the linear solver and the options resolved for it.
@@ -1059,6 +1209,9 @@ class HhtIntegrator final : public Integrator {
     summary_.jacobian_cost = jacobian_cost_;
     summary_.predictor = HhtPredictorName(linear_predictor_ ? HhtOptions::Predictor::kLinear
                                                             : HhtOptions::Predictor::kConstant);
+    summary_.rotation_jacobian =
+        HhtRotationJacobianName(exact_rotation_ ? HhtOptions::RotationJacobian::kExact
+                                                : HhtOptions::RotationJacobian::kFirstOrder);
   }
 
   // The matrix's refresh by cost (HhtOptions::jacobian_cost, c > 0): the k-th step on a
@@ -1128,7 +1281,7 @@ class HhtIntegrator final : public Integrator {
   double alpha_ = 0, beta_ = 0, gamma_ = 0;
   bool equilibrium_ = true;  // opt_.form == kEquilibrium
   double mix_ = 1;           // 1 + alpha (equilibrium form) or 1
-  HhtNewtonMatrix newton_;
+  std::unique_ptr<HhtNewtonMatrix> newton_;  // replaced by DropRotationRoom only
   std::vector<double> mat_[kNumMatrices];  // M and C_q of the residual
   std::vector<double> jac_;
   std::unique_ptr<KluSolver> klu_;  // null until needed when tree_ is set
@@ -1144,6 +1297,8 @@ class HhtIntegrator final : public Integrator {
   // a_{n-1} and lambda_{n-1}, the linear predictor's (valid when h_prev_ > 0).
   std::vector<double> a_prev_, lam_prev_;
   bool linear_predictor_ = false;  // HhtOptions::predictor resolved
+  bool exact_rotation_ = false;    // HhtOptions::rotation_jacobian resolved
+  std::vector<double> rotation_;   // RotationBlocks: 32 per group
   State state_;
   Summary summary_;
   std::string message_;

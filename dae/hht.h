@@ -111,6 +111,17 @@ struct HhtOptions {
   //    with KLU (whose results stay those of the constant predictor).
   enum class Predictor { kAuto, kConstant, kLinear };
   Predictor predictor = Predictor::kAuto;
+  // The Newton matrix's columns of the Euler-parameter groups in the modified scheme
+  // (docs/hht.md, "Newton matrix"; unused by the classical scheme, whose matrix is exact):
+  //  kFirstOrder: dq/da = mix beta h^2 I, dv/da = mix gamma h I, the classical scheme's,
+  //    a first-order approximation of the rotation update (mix = 1 + alpha in the
+  //    equilibrium form, 1 in the negrut form).
+  //  kExact: each group's exact 4 x 4 dq/da and dv/da (dae/hht_rotation.h) at the iterate
+  //    of the refresh. The converged step is the same to the Newton threshold.
+  //  kAuto (default): kExact when the tree elimination factorises the matrix,
+  //    kFirstOrder with KLU (whose results stay those of the first-order matrix).
+  enum class RotationJacobian { kAuto, kFirstOrder, kExact };
+  RotationJacobian rotation_jacobian = RotationJacobian::kAuto;
   // Replay: when not empty, the steps taken are exactly these sizes in order (e.g. the
   // accepted steps of an earlier adaptive run), with no error control and no step
   // changes: a Newton failure or a sequence that does not meet an AdvanceTo target (to
@@ -147,6 +158,10 @@ bool ParseHhtLinearSolver(const std::string& name, HhtOptions::LinearSolver* sol
 // "auto" | "constant" | "linear"; and the inverse (false for an unknown name).
 const char* HhtPredictorName(HhtOptions::Predictor predictor);
 bool ParseHhtPredictor(const std::string& name, HhtOptions::Predictor* predictor);
+
+// "auto" | "first-order" | "exact"; and the inverse (false for an unknown name).
+const char* HhtRotationJacobianName(HhtOptions::RotationJacobian jacobian);
+bool ParseHhtRotationJacobian(const std::string& name, HhtOptions::RotationJacobian* jacobian);
 
 // "equilibrium" | "negrut"; and the inverse (false for an unknown name).
 const char* HhtFormName(HhtOptions::Form form);
@@ -188,13 +203,19 @@ struct HhtHistory {
 // residual (r_q, r_c) with respect to (a_{n+1}, lambda_{n+1}) through Newmark's formulas
 // (dq_{n+1}/da_{n+1} = (1 + alpha) beta h^2 I in the equilibrium form, beta h^2 I in the
 // negrut form; dv/da likewise with gamma h), exact for the classical scheme and its
-// first-order approximation for the modified one. The pattern, (nq + nc) square, is fixed
-// at construction and holds the whole diagonal (zeros included, for the factorisation).
-// Uses only options.alpha and options.form.
+// first-order approximation for the modified one. With rotation blocks (the modified
+// scheme's exact derivative, HhtOptions::rotation_jacobian) the columns of each
+// Euler-parameter group take the group's 4 x 4 dq/da and dv/da instead (the pattern then
+// holds, in each block row, the union of the group's four columns). The pattern, (nq +
+// nc) square, is fixed at construction and holds the whole diagonal (zeros included, for
+// the factorisation). Uses only options.alpha and options.form.
 class HhtNewtonMatrix {
  public:
   // Throws std::invalid_argument if the system's patterns are invalid or of the wrong size.
-  HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options);
+  // rotation_blocks: room in the pattern for the groups' exact blocks (the system's
+  // quaternion_offsets).
+  HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& options,
+                  bool rotation_blocks = false);
 
   const CscPattern& pattern() const { return assembler_.pattern(); }
   // Evaluates the system's matrices at (t, q, v, a, lambda) and writes the matrix for
@@ -202,15 +223,22 @@ class HhtNewtonMatrix {
   // code (0 success; values are then complete). With force and constraint (nq and nc
   // values) the same evaluation also writes Q and C there, and matrix() keeps M and C_q:
   // a residual at that iterate needs no evaluation of its own.
+  // rotation: nullptr (the first-order matrix) or, with rotation blocks, 32 numbers per
+  // group: dq/da / (mix beta h^2) - I and dv/da / (mix gamma h) - I (4 x 4, row-major;
+  // mix = 1 + alpha in the equilibrium form, 1 in the negrut form).
   int Assemble(double t, double h, const double* q, const double* v, const double* a,
                const double* lambda, double* values, double* force = nullptr,
-               double* constraint = nullptr);
+               double* constraint = nullptr, const double* rotation = nullptr);
   // The system's matrix m of the last Assemble (not kConstraintVelDq).
   const std::vector<double>& matrix(Matrix m) const { return mat_[static_cast<int>(m)]; }
+  // All of them, indexed by Matrix (AssembleFrom's mats).
+  const std::vector<double>* matrices() const { return mat_; }
   // The same from matrices the caller evaluated at that iterate: mats[m] holds the values
   // of Matrix m (all but kConstraintVelDq are read; K_Ma with a = a_{n+1}, K_C with
   // w = lambda_{n+1}).
-  void AssembleFrom(double h, const std::vector<double>* mats, double* values) const;
+  void AssembleFrom(double h, const std::vector<double>* mats, double* values,
+                    const double* rotation = nullptr) const;
+  bool has_rotation_blocks() const { return rotation_blocks_; }
 
  private:
   MechanicalSystem& system_;
@@ -219,6 +247,14 @@ class HhtNewtonMatrix {
   BlockAssembler assembler_;
   int b_mass_ = 0, b_kma_ = 0, b_kc_ = 0, b_qq_ = 0, b_qv_ = 0, b_cqt_ = 0, b_cq_ = 0;
   std::vector<double> mat_[kNumMatrices];  // the system's matrices (all but kConstraintVelDq)
+  // Rotation blocks: per system matrix, its entries in a group's column (entry, group,
+  // column within the group, the result's positions of the entry's row in the group's
+  // four columns).
+  struct RotationEntry {
+    int k, group, col, pos[4];
+  };
+  std::vector<RotationEntry> rot_entries_[kNumMatrices];
+  bool rotation_blocks_ = false;
 };
 
 }  // namespace mbdae::dae

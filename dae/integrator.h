@@ -53,6 +53,10 @@ struct Summary {
   // HHT: the predictor of its Newton iteration ("constant" or "linear",
   // HhtOptions::predictor resolved); empty elsewhere.
   std::string predictor;
+  // HHT: the Newton matrix's rotation columns ("first-order" or "exact",
+  // HhtOptions::rotation_jacobian resolved; "first-order" for the classical scheme and
+  // systems without Euler parameters); empty elsewhere.
+  std::string rotation_jacobian;
   double h_last = 0;         // last step size used
 
   std::string BriefReport() const;

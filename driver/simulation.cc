@@ -59,6 +59,9 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   if (!dae::ParseHhtPredictor(s.hht_predictor, &o.predictor))
     throw InputError("hht settings: predictor must be auto, constant or linear, got '" +
                      s.hht_predictor + "'");
+  if (!dae::ParseHhtRotationJacobian(s.hht_rotation_jacobian, &o.rotation_jacobian))
+    throw InputError("hht settings: rotation_jacobian must be auto, first-order or exact, got '" +
+                     s.hht_rotation_jacobian + "'");
   if (!dae::ParseHhtLinearSolver(s.hht_linear_solver, &o.linear_solver))
     throw InputError("hht settings: linear_solver must be klu or tree, got '" +
                      s.hht_linear_solver + "'");
@@ -167,6 +170,7 @@ mbs::SimulationSettings ResolveSettings(const mbs::SimulationSettings& model_set
   if (o.hht_linear_solver) s.hht_linear_solver = *o.hht_linear_solver;
   if (o.hht_jacobian_cost) s.hht_jacobian_cost = *o.hht_jacobian_cost;
   if (o.hht_predictor) s.hht_predictor = *o.hht_predictor;
+  if (o.hht_rotation_jacobian) s.hht_rotation_jacobian = *o.hht_rotation_jacobian;
   if (o.output_accelerations) s.output_accelerations = *o.output_accelerations;
   if (o.ida_rtol) s.ida_rtol = *o.ida_rtol;
   if (o.ida_atol) s.ida_atol = *o.ida_atol;
@@ -562,6 +566,7 @@ void WriteRunAttributes(io::ResultsFile& file, const RunDescription& run) {
     file.SetAttribute("hht_linear_solver", settings.hht_linear_solver);
     if (settings.hht_jacobian_cost >= 0) file.SetAttribute("hht_jacobian_cost", settings.hht_jacobian_cost);
     file.SetAttribute("hht_predictor", settings.hht_predictor);
+    file.SetAttribute("hht_rotation_jacobian", settings.hht_rotation_jacobian);
   } else if (settings.integrator == mbs::IntegratorKind::kIda) {
     file.SetAttribute("ida_rtol", settings.ida_rtol);
     file.SetAttribute("ida_atol", settings.ida_atol);
@@ -610,6 +615,8 @@ void WriteSummaryAttributes(io::ResultsFile& file, const SimulationSummary& summ
     file.SetAttribute("jacobian_cost_used", summary.counters.jacobian_cost);
   if (!summary.counters.predictor.empty())
     file.SetAttribute("predictor_used", summary.counters.predictor);
+  if (!summary.counters.rotation_jacobian.empty())
+    file.SetAttribute("rotation_jacobian_used", summary.counters.rotation_jacobian);
   file.SetAttribute("wall_time", summary.wall_time);
   file.SetAttribute("solver_cpu_time", summary.solver_cpu_time);
   file.SetAttribute("max_position_violation", summary.max_position_violation);

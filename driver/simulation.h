@@ -53,6 +53,7 @@ struct SettingsOverrides {
   std::optional<std::string> hht_linear_solver;     // "klu" | "tree"
   std::optional<double> hht_jacobian_cost;          // >= 0, or -1: auto
   std::optional<std::string> hht_predictor;         // "auto" | "constant" | "linear"
+  std::optional<std::string> hht_rotation_jacobian; // "auto" | "first-order" | "exact"
   std::optional<std::string> output_accelerations;  // "solved" | "integrator"
   std::optional<double> ida_rtol, ida_atol;
   std::optional<long> ida_max_steps;

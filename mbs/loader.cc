@@ -1652,7 +1652,8 @@ class Loader {
     if (const YAML::Node o = node["output"]) LoadOutputSelection(o);
     if (const YAML::Node h = node["hht"]) {
       CheckKeys(h, element, {"alpha", "step", "adaptive", "tolerance", "modified", "form", "start", "dense_output",
-                    "newton_tolerance", "linear_solver", "jacobian_cost", "predictor"},
+                    "newton_tolerance", "linear_solver", "jacobian_cost", "predictor",
+                    "rotation_jacobian"},
                 "hht");
       if (const YAML::Node n = h["alpha"]) {
         s.hht_alpha = LoadTimeNumber(n, element, "alpha");
@@ -1695,6 +1696,11 @@ class Loader {
       if (const YAML::Node n = h["predictor"]) {
         s.hht_predictor = Enum<std::string>(n, element, "predictor",
                                             {{"auto", "auto"}, {"constant", "constant"}, {"linear", "linear"}});
+      }
+      if (const YAML::Node n = h["rotation_jacobian"]) {
+        s.hht_rotation_jacobian = Enum<std::string>(
+            n, element, "rotation_jacobian",
+            {{"auto", "auto"}, {"first-order", "first-order"}, {"exact", "exact"}});
       }
     }
     if (const YAML::Node i = node["ida"]) {

@@ -285,6 +285,12 @@ struct SimulationSettings {
   // docs/hht.md, "Newton iteration"): the file's `hht: {predictor}`, "auto" (linear with
   // the tree elimination, constant with KLU), "constant" or "linear".
   std::string hht_predictor = "auto";
+  // The Newton matrix's columns of the Euler-parameter groups in HHT's modified scheme
+  // (dae/hht.h HhtOptions::rotation_jacobian; docs/hht.md, "Rotation blocks"): the file's
+  // `hht: {rotation_jacobian}`, "auto" (exact with the tree elimination, first-order with
+  // KLU), "first-order" (the classical scheme's mix beta h^2 I and mix gamma h I) or
+  // "exact" (each group's exact 4 x 4 blocks). Unused by the classical scheme.
+  std::string hht_rotation_jacobian = "auto";
   double ida_rtol = 1e-8;
   double ida_atol = 1e-10;
   // IDA's step budget (total steps of the run; dae/ida.h IdaOptions::max_steps) and its

@@ -344,6 +344,8 @@ std::string WriteModelYaml(const Model& model, const ModelWriterOptions& options
     s << ", linear_solver: " << sim.hht_linear_solver;
   if (sim.hht_jacobian_cost >= 0) s << ", jacobian_cost: " << Num(sim.hht_jacobian_cost);
   if (sim.hht_predictor != SimulationSettings().hht_predictor) s << ", predictor: " << sim.hht_predictor;
+  if (sim.hht_rotation_jacobian != SimulationSettings().hht_rotation_jacobian)
+    s << ", rotation_jacobian: " << sim.hht_rotation_jacobian;
   s << "}\n";
   s << "  ida: {rtol: " << Num(sim.ida_rtol) << ", atol: " << Num(sim.ida_atol);
   if (sim.ida_max_steps != SimulationSettings().ida_max_steps) s << ", max_steps: " << sim.ida_max_steps;

@@ -11,9 +11,11 @@
 //             sigma_{k-1} = w_{k-1} grad g + Phi_s^T (sigma_k - [R_q^T mu; R_v^T mu]),
 //             dG/dp -= R_p^T mu;
 //   forward:  Rt_u du = -(R_q dq_exp + R_v dv_exp + R_p),  ds_k = ds_exp + Phi_u du.
-// Rt_u is the HHT Newton matrix for the classical scheme (exact); for the modified
-// scheme the Newton matrix is its first-order approximation, and the solves refine
-// iteratively with the exact products.
+// Rt_u is the HHT Newton matrix: exact for the classical scheme, and for the modified
+// scheme with its rotation blocks (the groups' dq/da and dv/da from the same group
+// Jacobians, dae/hht.h HhtNewtonMatrix); the solves still refine iteratively with the
+// exact products, which a pass confirms (the first-order matrix needed about 3 passes a
+// solve).
 #include "sensitivities/hht_sensitivity.h"
 
 #include <Eigen/Dense>
@@ -24,6 +26,7 @@
 #include <memory>
 
 #include "dae/format.h"
+#include "dae/hht_rotation.h"
 #include "dae/klu_solver.h"
 #include "sensitivities/system_matrices.h"
 
@@ -44,81 +47,10 @@ struct Scheme {
   bool eq = true, modified = false;
 };
 
-// The rotation update of one Euler-parameter group (dae/hht.cc, Kinematics), as a
-// function of x = (e_n, e'_n, a_n, wbar_n, a_{n+1}, e_iter) (4+4+4+3+4+4 = 23) giving
-// y = (e_{n+1}, e'_{n+1}, wbar_{n+1}) (4+4+3 = 11).
-constexpr int kGx = 19;  // inputs other than e_iter
-template <class T>
-void GroupMap(const Scheme& sc, double h, double r, const T* x, T* y) {
-  const T* e0 = x;
-  const T* ed0 = x + 4;
-  const T* an = x + 8;
-  const T* wb0 = x + 12;
-  const T* a1 = x + 15;
-  const T* eg = x + 19;
-  auto Gx = [](const T* e, const T* v, T* out) {
-    out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
-    out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
-    out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
-  };
-  T w0[3], dw0[3], dw1[3], th[3], w1[3];
-  Gx(e0, ed0, w0);
-  Gx(eg, a1, dw1);
-  if (sc.eq) {
-    T dwn[3];
-    Gx(e0, an, dwn);
-    for (int k = 0; k < 3; ++k) {
-      dw0[k] = 2 * dwn[k] + r * (wb0[k] - 2 * dwn[k]);
-      dw1[k] = 2 * ((1 + sc.alpha) * dw1[k] - sc.alpha * dwn[k]);
-    }
-  } else {
-    Gx(e0, an, dw0);
-    for (int k = 0; k < 3; ++k) {
-      dw0[k] *= 2;
-      dw1[k] *= 2;
-    }
-  }
-  for (int k = 0; k < 3; ++k) {
-    w0[k] *= 2;
-    y[8 + k] = dw1[k];
-    th[k] = h * w0[k] + h * h * ((0.5 - sc.beta) * dw0[k] + sc.beta * dw1[k]);
-    w1[k] = w0[k] + h * ((1 - sc.gamma) * dw0[k] + sc.gamma * dw1[k]);
-  }
-  const T ang2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2];
-  T c, sc_;
-  using std::cos;
-  using std::sin;
-  using std::sqrt;
-  if (ang2 > 1e-16) {
-    const T ang = sqrt(ang2);
-    c = cos(ang / 2);
-    sc_ = sin(ang / 2) / ang;
-  } else {  // the series (exact to round-off there; no derivative of sqrt at 0)
-    c = 1 - ang2 / 8 + ang2 * ang2 / 384;
-    sc_ = 0.5 - ang2 / 48;
-  }
-  const T rq[4] = {c, sc_ * th[0], sc_ * th[1], sc_ * th[2]};
-  T eu[4];
-  eu[0] = e0[0] * rq[0] - e0[1] * rq[1] - e0[2] * rq[2] - e0[3] * rq[3];
-  eu[1] = e0[0] * rq[1] + e0[1] * rq[0] + e0[2] * rq[3] - e0[3] * rq[2];
-  eu[2] = e0[0] * rq[2] - e0[1] * rq[3] + e0[2] * rq[0] + e0[3] * rq[1];
-  eu[3] = e0[0] * rq[3] + e0[1] * rq[2] - e0[2] * rq[1] + e0[3] * rq[0];
-  T ed[4];
-  ed[0] = -eu[1] * w1[0] - eu[2] * w1[1] - eu[3] * w1[2];
-  ed[1] = eu[0] * w1[0] - eu[3] * w1[1] + eu[2] * w1[2];
-  ed[2] = eu[3] * w1[0] + eu[0] * w1[1] - eu[1] * w1[2];
-  ed[3] = -eu[2] * w1[0] + eu[1] * w1[1] + eu[0] * w1[2];
-  T s = T(0);
-  for (int k = 0; k < 4; ++k) {
-    ed[k] *= 0.5;
-    s += eu[k] * a1[k] + ed[k] * ed[k];
-  }
-  const T rho = sc.mix * sc.beta * h * h * s;
-  for (int k = 0; k < 4; ++k) {
-    y[k] = (1 + rho) * eu[k];
-    y[4 + k] = ed[k] + sc.mix * sc.gamma * h * s * eu[k];
-  }
-}
+// The rotation update of one Euler-parameter group (dae/hht_rotation.h), x = (e_n, e'_n,
+// a_n, wbar_n, a_{n+1}, e_iter) (4+4+4+3+4+4 = 23) giving y = (e_{n+1}, e'_{n+1},
+// wbar_{n+1}) (4+4+3 = 11).
+constexpr int kGx = dae::HhtRotationLayout::kEIter;  // inputs other than e_iter
 
 using GroupJac = Eigen::Matrix<double, 11, kGx>;
 
@@ -128,7 +60,13 @@ GroupJac GroupJacobian(const Scheme& sc, double h, double r, const double* xin) 
   using AD = Eigen::AutoDiffScalar<Deriv>;
   AD x[23], y[11];
   for (int i = 0; i < 23; ++i) x[i] = AD(xin[i], 23, i);
-  GroupMap(sc, h, r, x, y);
+  dae::HhtRotationScheme rs;
+  rs.alpha = sc.alpha;
+  rs.beta = sc.beta;
+  rs.gamma = sc.gamma;
+  rs.mix = sc.mix;
+  rs.equilibrium = sc.eq;
+  dae::HhtRotationMap(rs, h, r, x, y);
   Eigen::Matrix<double, 11, 23> J;
   for (int i = 0; i < 11; ++i) J.row(i) = y[i].derivatives().transpose();
   const Eigen::Matrix<double, 11, 4> Jit = J.rightCols<4>();
@@ -143,7 +81,7 @@ class Sweeps {
   Sweeps(dae::MechanicalSystem& system, const dae::HhtOptions& options,
          ObjectiveFunction& objective, const HhtTrajectory& traj)
       : sys_(system), obj_(objective), traj_(traj), win_(system, options, traj),
-        newton_(system, options), sm_(system), sm_prev_(system) {
+        newton_(system, options, /*rotation_blocks=*/options.modified), sm_(system), sm_prev_(system) {
     nq_ = system.num_coordinates();
     nc_ = system.num_constraints();
     np_ = system.num_parameters();
@@ -165,6 +103,7 @@ class Sweeps {
     jac_.assign(newton_.pattern().nnz(), 0.0);
     klu_ = std::make_unique<dae::KluSolver>(newton_.pattern());
     T_.resize(groups_.size());
+    rotation_.assign(32 * groups_.size(), 0.0);
     // What the steps' partial derivatives use (not C_q v + C_t and gamma and their
     // parameter derivatives).
     for (Matrix m : {Matrix::kMass, Matrix::kMassTimesAccDq, Matrix::kForceDq, Matrix::kForceDv,
@@ -253,12 +192,6 @@ class Sweeps {
       *error = "evaluation at t = " + Num(t1) + " failed: " + err;
       return false;
     }
-    newton_.AssembleFrom(h, sm_.all_values(), jac_.data());
-    ++factorizations_;
-    if (!klu_->Factor(jac_.data(), &err)) {
-      *error = "the Newton matrix of the step to t = " + Num(t1) + " is singular: " + err;
-      return false;
-    }
     if (!sc_.eq) {
       const double tp = k == 1 ? traj_.t(0) : traj_.t(k - 2) + traj_.h(k - 1);
       if (sm_prev_.Evaluate(prev_, tp, win_.q(k - 1), win_.v(k - 1), win_.a(k - 1),
@@ -270,6 +203,7 @@ class Sweeps {
     if (!groups_.empty()) {
       Wbar(k - 1, wbar_.data());
       const double r = Ratio(k);
+      const double cq = 1 / (sc_.mix * sc_.beta * h * h), cv = 1 / (sc_.mix * sc_.gamma * h);
       for (size_t grp = 0; grp < groups_.size(); ++grp) {
         const int g = groups_[grp];
         double x[23];
@@ -282,7 +216,22 @@ class Sweeps {
         }
         for (int i = 0; i < 3; ++i) x[12 + i] = wbar_[3 * grp + i];
         T_[grp] = GroupJacobian(sc_, h, r, x);
+        // The Newton matrix's rotation blocks (dae/hht.h, HhtNewtonMatrix::Assemble):
+        // with them it is Rt_u itself.
+        double* rq = &rotation_[32 * grp];
+        for (int i = 0; i < 4; ++i)
+          for (int j = 0; j < 4; ++j) {
+            rq[4 * i + j] = T_[grp](i, 15 + j) * cq - (i == j ? 1 : 0);
+            rq[16 + 4 * i + j] = T_[grp](4 + i, 15 + j) * cv - (i == j ? 1 : 0);
+          }
       }
+    }
+    newton_.AssembleFrom(h, sm_.all_values(), jac_.data(),
+                         groups_.empty() ? nullptr : rotation_.data());
+    ++factorizations_;
+    if (!klu_->Factor(jac_.data(), &err)) {
+      *error = "the Newton matrix of the step to t = " + Num(t1) + " is singular: " + err;
+      return false;
     }
     return true;
   }
@@ -441,6 +390,7 @@ class Sweeps {
   std::vector<int> groups_;
   std::vector<bool> quat_;
   std::vector<GroupJac> T_;
+  std::vector<double> rotation_;  // the Newton matrix's rotation blocks, 32 per group
   std::vector<double> jac_;
   std::unique_ptr<dae::KluSolver> klu_;
   std::vector<double> b_, mu_, res_, tmp_, rq_, rv_, wbar_;

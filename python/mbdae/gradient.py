@@ -50,7 +50,8 @@ class Gradient:
     - ``method`` ("adjoint", "forward", "fd"), ``integrator`` ("hht", "ida");
     - ``fd_steps``: dict wrt name -> the absolute central-difference step (fd; else None);
     - ``solver_cpu_time`` (the forward run), ``gradient_cpu_time`` (beyond it; fd: the
-      perturbed runs), ``wall_time`` in seconds; ``forward_steps``, ``runs``.
+      perturbed runs), ``wall_time`` in seconds; ``forward_steps``, ``runs``,
+      ``linear_solves`` (HHT: the sweep's solves of the Newton matrix; 0 otherwise).
 
     ``g["G"]`` is the dict wrt name -> dG/dp of objective G; :meth:`as_dict` gives
     ``{"G": {"value": ..., "gradient": {"k": ..., ...}}, ...}`` (the JSON of
@@ -67,6 +68,8 @@ class Gradient:
         self.solver_cpu_time, self.gradient_cpu_time, self.wall_time = (float(t) for t in times)
         self.forward_steps = int(counters[0])
         self.runs = int(counters[1])
+        # HHT's sweep: transposed (adjoint) or plain (forward) solves of the Newton matrix
+        self.linear_solves = int(counters[2])
         self.method = summary.get("method")
         self.integrator = summary.get("integrator")
         self._report = report

@@ -41,7 +41,8 @@ MATRICES = {
 #: settings of :meth:`Model.gradient` (``gradient.*``; they do not restart the model).
 OPTIONS = ("t_end", "output_step", "integrator", "hht.alpha", "hht.step", "hht.adaptive",
            "hht.tolerance", "hht.modified", "hht.form", "hht.dense_output", "hht.newton_tolerance",
-           "hht.linear_solver", "hht.jacobian_cost", "hht.predictor", "ida.rtol", "ida.atol",
+           "hht.linear_solver", "hht.jacobian_cost", "hht.predictor", "hht.rotation_jacobian",
+           "ida.rtol", "ida.atol",
            "ida.max_steps", "ida.min_step", "ida.dense_output", "ida.linear_solver", "erk.rtol", "erk.atol", "erk.max_steps",
            "erk.min_step", "erk.max_step", "output.bodies", "output.joints", "output.forces",
            "output.measures", "gradient.fd_step", "gradient.newton_factor",

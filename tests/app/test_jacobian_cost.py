@@ -23,9 +23,10 @@ from pendulum_app import assert_hht_key_error, pendulum_with_hht, run, run_ok, s
 
 MODELS = os.environ["MBDAE_APP_MODELS"]
 PENDULUM = os.path.join(MODELS, "pendulum.yaml")
-# The tree with the constant predictor (its default is linear: test_predictor.py), so
-# that the cost rule alone differs from KLU's runs.
-TREE = ["--linear-solver", "tree", "--predictor", "constant"]
+# The tree with the constant predictor and the first-order Newton matrix (its defaults
+# are linear and exact: test_predictor.py, test_rotation_jacobian.py), so that the cost
+# rule alone differs from KLU's runs.
+TREE = ["--linear-solver", "tree", "--predictor", "constant", "--rotation-jacobian", "first-order"]
 
 
 def test_default_by_linear_solver(tmp_path):

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <unsupported/Eigen/AutoDiff>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <stdexcept>
 
 #include "dae/hht.h"
+#include "dae/hht_rotation.h"
 #include "tests/support/free_body_system.h"
 #include "tests/support/pendulum_reference.h"
 #include "tests/support/pendulum_system.h"
@@ -225,6 +227,225 @@ TEST(HhtNewtonMatrix, IsTheDerivativeOfTheStepResidual) {
       EXPECT_GT(J_fd.cwiseAbs().maxCoeff(), 0.1);
     }
   }
+}
+
+// The modified scheme's exact Newton matrix (HhtOptions::rotation_jacobian = kExact):
+// with the rotation blocks of dae/hht_rotation.h, HhtNewtonMatrix is the derivative of
+// the step's residual through the modified map itself, e_{n+1} and e'_{n+1} of the Euler
+// parameters from the rotation update at its fixed point G(e_{n+1}) (iterated here to
+// round-off), the other coordinates from Newmark's formulas. Without the blocks, the
+// same matrix misses that derivative by O(h |omega|).
+TEST(HhtNewtonMatrix, RotationBlocksAreTheDerivativeOfTheModifiedStepResidual) {
+  FreeBodySystem sys(2.0, {0.7, 1.3, 2.1}, {0.1, -0.2, 0.3}, {0.4, -0.5, 0.6});
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const int nq = 7, nc = 1, n = nq + nc, g = 3;
+  using L = HhtRotationLayout;
+  for (HhtOptions::Form form : {HhtOptions::Form::kEquilibrium, HhtOptions::Form::kNegrut}) {
+    for (double alpha : {0.0, -0.2}) {
+      SCOPED_TRACE(std::string(HhtFormName(form)) + ", alpha " + std::to_string(alpha));
+      HhtOptions opt;
+      opt.form = form;
+      opt.alpha = alpha;
+      HhtNewtonMatrix newton(sys, opt, /*rotation_blocks=*/true);
+      ASSERT_TRUE(newton.has_rotation_blocks());
+      const bool eq = form == HhtOptions::Form::kEquilibrium;
+      HhtRotationScheme sc;
+      sc.alpha = alpha;
+      sc.beta = (1 - alpha) * (1 - alpha) / 4;
+      sc.gamma = 0.5 - alpha;
+      sc.mix = eq ? 1 + alpha : 1.0;
+      sc.equilibrium = eq;
+      const double h = 0.05, t = 0.3, r = eq ? 1.3 : 1.0;
+      const double cq = sc.mix * sc.beta * h * h, cv = sc.mix * sc.gamma * h;
+      // The previous state (unit e_n, e'_n orthogonal to it, a fast spin) and the iterate.
+      std::vector<double> q0(nq), v0(nq), a0(nq), a1(nq), lam(nc);
+      double wbar0[3];
+      for (auto* x : {&q0, &v0, &a0, &a1, &lam})
+        for (double& y : *x) y = u(rng);
+      for (double& w : wbar0) w = u(rng);
+      double norm = 0, dot = 0;
+      for (int k = 0; k < 4; ++k) norm += q0[g + k] * q0[g + k];
+      for (int k = 0; k < 4; ++k) q0[g + k] /= std::sqrt(norm);
+      for (int k = 0; k < 4; ++k) v0[g + k] *= 5, dot += q0[g + k] * v0[g + k];
+      for (int k = 0; k < 4; ++k) v0[g + k] -= dot * q0[g + k];
+      // q_{n+1}, v_{n+1} at a_{n+1} + x: Newmark's increments outside the group, the
+      // rotation update at its fixed point inside.
+      auto kinematics = [&](const Eigen::VectorXd& x, std::vector<double>* q1,
+                            std::vector<double>* v1, std::vector<double>* a) {
+        a->assign(nq, 0.0);
+        for (int i = 0; i < nq; ++i) (*a)[i] = a1[i] + x[i];
+        q1->assign(nq, 0.0);
+        v1->assign(nq, 0.0);
+        for (int i = 0; i < nq; ++i) {
+          (*q1)[i] = q0[i] + h * v0[i] + cq * x[i];
+          (*v1)[i] = v0[i] + cv * x[i];
+        }
+        double in[L::kInputs], y[L::kOutputs];
+        for (int k = 0; k < 4; ++k) {
+          in[L::kE0 + k] = q0[g + k];
+          in[L::kEd0 + k] = v0[g + k];
+          in[L::kA0 + k] = a0[g + k];
+          in[L::kA1 + k] = (*a)[g + k];
+          in[L::kEIter + k] = q0[g + k];
+        }
+        for (int k = 0; k < 3; ++k) in[L::kWbar0 + k] = wbar0[k];
+        for (int it = 0; it < 100; ++it) {
+          HhtRotationMap(sc, h, r, in, y);
+          double change = 0;
+          for (int k = 0; k < 4; ++k) {
+            change = std::max(change, std::abs(y[L::kE1 + k] - in[L::kEIter + k]));
+            in[L::kEIter + k] = y[L::kE1 + k];
+          }
+          if (change == 0) break;
+        }
+        for (int k = 0; k < 4; ++k) {
+          (*q1)[g + k] = y[L::kE1 + k];
+          (*v1)[g + k] = y[L::kEd1 + k];
+        }
+      };
+      auto residual = [&](const Eigen::VectorXd& x) {
+        std::vector<double> q1, v1, a, Q(nq), C(nc), M(sys.pattern(Matrix::kMass).nnz()),
+            Cq(sys.pattern(Matrix::kConstraintDq).nnz());
+        kinematics(x, &q1, &v1, &a);
+        EvalInput in;
+        in.t = t;
+        in.q = q1.data();
+        in.v = v1.data();
+        EvalOutput out;
+        out.force = Q.data();
+        out.constraint = C.data();
+        out[Matrix::kMass] = M.data();
+        out[Matrix::kConstraintDq] = Cq.data();
+        EXPECT_EQ(sys.Evaluate(in, out), 0);
+        const Eigen::MatrixXd Md = Dense(sys.pattern(Matrix::kMass), M);
+        const Eigen::MatrixXd Cd = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
+        Eigen::VectorXd l1(nc);
+        for (int j = 0; j < nc; ++j) l1[j] = lam[j] + x[nq + j];
+        const Eigen::Map<const Eigen::VectorXd> av(a.data(), nq), Qv(Q.data(), nq);
+        const Eigen::VectorXd F = Cd.transpose() * l1 - Qv;
+        Eigen::VectorXd res(n);
+        res.head(nq) = eq ? Eigen::VectorXd((Md * av + F) / (1 + alpha))
+                          : Eigen::VectorXd(Md * av / (1 + alpha) + F);
+        for (int j = 0; j < nc; ++j) res[nq + j] = C[j] / cq;
+        return res;
+      };
+      // The matrix at the iterate, with the blocks at its fixed point e_{n+1}.
+      std::vector<double> q1, v1, a;
+      kinematics(Eigen::VectorXd::Zero(n), &q1, &v1, &a);
+      double in[L::kInputs];
+      for (int k = 0; k < 4; ++k) {
+        in[L::kE0 + k] = q0[g + k];
+        in[L::kEd0 + k] = v0[g + k];
+        in[L::kA0 + k] = a0[g + k];
+        in[L::kA1 + k] = a1[g + k];
+        in[L::kEIter + k] = q1[g + k];
+      }
+      for (int k = 0; k < 3; ++k) in[L::kWbar0 + k] = wbar0[k];
+      double rot[32];
+      HhtRotationDerivative(sc, h, r, in, rot, rot + 16);
+      for (int i = 0; i < 16; ++i) {
+        rot[i] = rot[i] / cq - (i % 5 == 0 ? 1 : 0);
+        rot[16 + i] = rot[16 + i] / cv - (i % 5 == 0 ? 1 : 0);
+      }
+      std::vector<double> exact(newton.pattern().nnz()), first(newton.pattern().nnz());
+      ASSERT_EQ(newton.Assemble(t, h, q1.data(), v1.data(), a1.data(), lam.data(),
+                                exact.data(), nullptr, nullptr, rot),
+                0);
+      ASSERT_EQ(newton.Assemble(t, h, q1.data(), v1.data(), a1.data(), lam.data(), first.data()), 0);
+      Eigen::MatrixXd J_fd(n, n);
+      const double eps = 1e-3;
+      for (int k = 0; k < n; ++k) {
+        Eigen::VectorXd xp = Eigen::VectorXd::Zero(n), xm = Eigen::VectorXd::Zero(n);
+        xp[k] = eps;
+        xm[k] = -eps;
+        J_fd.col(k) = (residual(xp) - residual(xm)) / (2 * eps);
+      }
+      const double scale = J_fd.cwiseAbs().maxCoeff();
+      const double err = (Dense(newton.pattern(), exact) - J_fd).cwiseAbs().maxCoeff() / scale;
+      const double err1 = (Dense(newton.pattern(), first) - J_fd).cwiseAbs().maxCoeff() / scale;
+      std::cout << "  relative error of the Newton matrix: exact blocks " << err
+                << ", first order " << err1 << "\n";
+      EXPECT_LT(err, 1e-7);
+      EXPECT_GT(err1, 1e-4);  // the blocks matter here (h |omega| ~ 0.5)
+    }
+  }
+}
+
+// HhtRotationDerivative, written out by the chain rule, against forward-mode AutoDiff of
+// HhtRotationMap with the fixed point resolved the same way, on random inputs in both
+// forms, at large angles and on the small-angle branch (|theta|^2 <= 1e-16).
+TEST(HhtRotationDerivative, MatchesAutoDiffOfTheMap) {
+  using L = HhtRotationLayout;
+  using AD = Eigen::AutoDiffScalar<Eigen::Matrix<double, 8, 1>>;
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> u(-1, 1);
+  double worst = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    HhtRotationScheme sc;
+    sc.equilibrium = trial % 2 == 0;
+    sc.alpha = trial % 4 < 2 ? -0.2 : 0.0;
+    sc.beta = (1 - sc.alpha) * (1 - sc.alpha) / 4;
+    sc.gamma = 0.5 - sc.alpha;
+    sc.mix = sc.equilibrium ? 1 + sc.alpha : 1.0;
+    const bool tiny = trial >= 30;  // theta ~ 1e-9: the series branch
+    const double h = tiny ? 1e-5 : 0.05 * (1 + trial % 3), r = 1.2;
+    double x[L::kInputs];
+    for (double& v : x) v = u(rng);
+    if (tiny) {
+      for (int k = 0; k < 4; ++k) x[L::kEd0 + k] = 0;
+      for (int k = 0; k < 19; ++k)
+        if (k >= L::kA0) x[k] *= 1e-1;
+      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = 0;
+      for (int k = 0; k < 4; ++k) x[L::kA0 + k] = 0;
+    }
+    double de[16], ded[16];
+    HhtRotationDerivative(sc, h, r, x, de, ded);
+    AD xa[L::kInputs], y[L::kOutputs];
+    for (int i = 0; i < L::kInputs; ++i) xa[i] = AD(x[i], Eigen::Matrix<double, 8, 1>::Zero());
+    for (int k = 0; k < 4; ++k) {
+      xa[L::kA1 + k].derivatives()[k] = 1;
+      xa[L::kEIter + k].derivatives()[4 + k] = 1;
+    }
+    HhtRotationMap(sc, h, r, xa, y);
+    Eigen::Matrix<double, 8, 8> J;
+    for (int i = 0; i < 8; ++i) J.row(i) = y[L::kE1 + i].derivatives().transpose();
+    const Eigen::Matrix4d A = Eigen::Matrix4d::Identity() - J.block<4, 4>(0, 4);
+    const Eigen::Matrix4d de_ad = A.partialPivLu().solve(J.block<4, 4>(0, 0));
+    const Eigen::Matrix4d ded_ad = J.block<4, 4>(4, 0) + J.block<4, 4>(4, 4) * de_ad;
+    const double scale_e = de_ad.cwiseAbs().maxCoeff(), scale_v = ded_ad.cwiseAbs().maxCoeff();
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        worst = std::max(worst, std::abs(de[4 * i + j] - de_ad(i, j)) / scale_e);
+        worst = std::max(worst, std::abs(ded[4 * i + j] - ded_ad(i, j)) / scale_v);
+      }
+  }
+  std::cout << "  largest relative difference to AutoDiff: " << worst << "\n";
+  EXPECT_LT(worst, 1e-12);
+}
+
+// A Newton matrix with room for the blocks but assembled without them is the
+// first-order matrix: the same values at the first-order pattern's entries, zeros at
+// the rest.
+TEST(HhtNewtonMatrix, RoomForRotationBlocksLeavesTheFirstOrderMatrix) {
+  FreeBodySystem sys(2.0, {0.7, 1.3, 2.1}, {0.1, -0.2, 0.3}, {0.4, -0.5, 0.6});
+  HhtOptions opt;
+  opt.alpha = -0.1;
+  HhtNewtonMatrix plain(sys, opt), room(sys, opt, /*rotation_blocks=*/true);
+  EXPECT_FALSE(plain.has_rotation_blocks());
+  EXPECT_TRUE(room.has_rotation_blocks());
+  opt.modified = false;
+  EXPECT_FALSE(HhtNewtonMatrix(sys, opt, true).has_rotation_blocks());  // classical: exact already
+  std::vector<double> q = {0.1, 0.2, 0.3, 0.5, 0.5, 0.5, 0.5}, v = {1, -1, 2, 0.1, -0.2, 0.3, -0.2},
+                      a = {0.3, 0.1, -0.2, 0.4, 0.1, -0.3, -0.2}, lam = {0.7};
+  std::vector<double> x(plain.pattern().nnz()), y(room.pattern().nnz());
+  ASSERT_EQ(plain.Assemble(0.1, 0.01, q.data(), v.data(), a.data(), lam.data(), x.data()), 0);
+  ASSERT_EQ(room.Assemble(0.1, 0.01, q.data(), v.data(), a.data(), lam.data(), y.data()), 0);
+  EXPECT_EQ((Dense(plain.pattern(), x) - Dense(room.pattern(), y)).cwiseAbs().maxCoeff(), 0.0);
+  double rot[32] = {0};
+  EXPECT_THROW(plain.Assemble(0.1, 0.01, q.data(), v.data(), a.data(), lam.data(), x.data(),
+                              nullptr, nullptr, rot),
+               std::logic_error);
 }
 
 // The free body's equations reproduce Euler's equations: J omega' + omega x J omega = n.

@@ -1,0 +1,133 @@
+// The rotation update of one Euler-parameter group in HHT's modified scheme (dae/hht.cc,
+// docs/hht.md, "Euler parameters"), as a function that both the integrator's Newton
+// matrix and the sensitivities (sensitivities/hht_sensitivity.cc) differentiate.
+#pragma once
+
+#include <cmath>
+
+namespace mbdae::dae {
+
+// The scheme's constants: alpha, beta = (1 - alpha)^2 / 4, gamma = 1/2 - alpha, mix = 1 +
+// alpha in the equilibrium form (dq/dabar) and 1 in the negrut form.
+struct HhtRotationScheme {
+  double alpha = 0, beta = 0, gamma = 0, mix = 1;
+  bool equilibrium = true;
+};
+
+// Inputs x of the map: e_n (4), e'_n (4), a_n (4), wbar_n (3), a_{n+1} (4) and the
+// iterate e_iter at which G(e_{n+1}) is taken (4); outputs y: e_{n+1} (4), e'_{n+1} (4),
+// wbar_{n+1} (3). r = h / h_prev scales wbar's history term (equilibrium form; 1 else).
+struct HhtRotationLayout {
+  enum : int { kE0 = 0, kEd0 = 4, kA0 = 8, kWbar0 = 12, kA1 = 15, kEIter = 19, kInputs = 23 };
+  enum : int { kE1 = 0, kEd1 = 4, kWbar1 = 8, kOutputs = 11 };
+};
+
+// Values inside the map that its derivative (HhtRotationDerivative) reuses: theta,
+// omega_{n+1}, |theta|^2, cos(|theta|/2), sin(|theta|/2)/|theta|, the unit update u, its
+// rate G(u)^T omega_{n+1} / 2 and the normalisation defect s.
+template <class T>
+struct HhtRotationInside {
+  T th[3], w1[3], ang2, c, sc, eu[4], ed[4], s;
+};
+
+template <class T>
+void HhtRotationMap(const HhtRotationScheme& sc, double h, double r, const T* x, T* y,
+                    HhtRotationInside<T>* inside = nullptr) {
+  using L = HhtRotationLayout;
+  const T* e0 = x + L::kE0;
+  const T* ed0 = x + L::kEd0;
+  const T* an = x + L::kA0;
+  const T* wb0 = x + L::kWbar0;
+  const T* a1 = x + L::kA1;
+  const T* eg = x + L::kEIter;
+  auto Gx = [](const T* e, const T* v, T* out) {
+    out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
+    out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
+    out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
+  };
+  T w0[3], dw0[3], dw1[3], th[3], w1[3];
+  Gx(e0, ed0, w0);
+  Gx(eg, a1, dw1);
+  if (sc.equilibrium) {
+    T dwn[3];
+    Gx(e0, an, dwn);
+    for (int k = 0; k < 3; ++k) {
+      dw0[k] = 2 * dwn[k] + r * (wb0[k] - 2 * dwn[k]);
+      dw1[k] = 2 * ((1 + sc.alpha) * dw1[k] - sc.alpha * dwn[k]);
+    }
+  } else {
+    Gx(e0, an, dw0);
+    for (int k = 0; k < 3; ++k) {
+      dw0[k] *= 2;
+      dw1[k] *= 2;
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    w0[k] *= 2;
+    y[L::kWbar1 + k] = dw1[k];
+    th[k] = h * w0[k] + h * h * ((0.5 - sc.beta) * dw0[k] + sc.beta * dw1[k]);
+    w1[k] = w0[k] + h * ((1 - sc.gamma) * dw0[k] + sc.gamma * dw1[k]);
+  }
+  const T ang2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2];
+  T c, sc_;
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  if (ang2 > 1e-16) {
+    const T ang = sqrt(ang2);
+    c = cos(ang / 2);
+    sc_ = sin(ang / 2) / ang;
+  } else {  // the series (exact to round-off there; no derivative of sqrt at 0)
+    c = 1 - ang2 / 8 + ang2 * ang2 / 384;
+    sc_ = 0.5 - ang2 / 48;
+  }
+  const T rq[4] = {c, sc_ * th[0], sc_ * th[1], sc_ * th[2]};
+  T eu[4];
+  eu[0] = e0[0] * rq[0] - e0[1] * rq[1] - e0[2] * rq[2] - e0[3] * rq[3];
+  eu[1] = e0[0] * rq[1] + e0[1] * rq[0] + e0[2] * rq[3] - e0[3] * rq[2];
+  eu[2] = e0[0] * rq[2] - e0[1] * rq[3] + e0[2] * rq[0] + e0[3] * rq[1];
+  eu[3] = e0[0] * rq[3] + e0[1] * rq[2] - e0[2] * rq[1] + e0[3] * rq[0];
+  T ed[4];
+  ed[0] = -eu[1] * w1[0] - eu[2] * w1[1] - eu[3] * w1[2];
+  ed[1] = eu[0] * w1[0] - eu[3] * w1[1] + eu[2] * w1[2];
+  ed[2] = eu[3] * w1[0] + eu[0] * w1[1] - eu[1] * w1[2];
+  ed[3] = -eu[2] * w1[0] + eu[1] * w1[1] + eu[0] * w1[2];
+  T s = T(0);
+  for (int k = 0; k < 4; ++k) {
+    ed[k] *= 0.5;
+    s += eu[k] * a1[k] + ed[k] * ed[k];
+  }
+  const T rho = sc.mix * sc.beta * h * h * s;
+  for (int k = 0; k < 4; ++k) {
+    y[L::kE1 + k] = (1 + rho) * eu[k];
+    y[L::kEd1 + k] = ed[k] + sc.mix * sc.gamma * h * s * eu[k];
+  }
+  if (inside) {
+    for (int k = 0; k < 3; ++k) {
+      inside->th[k] = th[k];
+      inside->w1[k] = w1[k];
+    }
+    for (int k = 0; k < 4; ++k) {
+      inside->eu[k] = eu[k];
+      inside->ed[k] = ed[k];
+    }
+    inside->ang2 = ang2;
+    inside->c = c;
+    inside->sc = sc_;
+    inside->s = s;
+  }
+}
+
+// The exact derivative of the group's e_{n+1} and e'_{n+1} with respect to a_{n+1} (4 x 4
+// each, row-major into de_da and ded_da) at the inputs x, with G(e_{n+1}) at e_{n+1}
+// itself: the map's fixed point in e_iter resolved by the implicit function theorem,
+// de/da = (I - dy_e/de_iter)^{-1} dy_e/da. It replaces the first-order mix beta h^2 I and
+// mix gamma h I of the Newton matrix (HhtOptions::rotation_jacobian). Written out by the
+// chain rule (a_{n+1} and e_iter enter the update through omegabar'_{n+1} = 2 mix
+// G(e_iter) a_{n+1} + ..., and a_{n+1} also through s), about 0.1 us a group; the tests
+// check it against forward-mode AutoDiff of HhtRotationMap and the Newton matrix against
+// finite differences.
+void HhtRotationDerivative(const HhtRotationScheme& sc, double h, double r, const double* x,
+                           double* de_da, double* ded_da);
+
+}  // namespace mbdae::dae
