@@ -951,14 +951,8 @@ class HhtIntegrator final : public Integrator {
   // G(e_{n+1}) at the iterate's e_{n+1} (the fixed point, dae/hht_rotation.h).
   void RotationBlocks(double h) {
     using L = HhtRotationLayout;
-    HhtRotationScheme sc;
-    sc.alpha = alpha_;
-    sc.beta = beta_;
-    sc.gamma = gamma_;
-    sc.mix = mix_;
-    sc.equilibrium = equilibrium_;
+    const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
-    const double cq = 1 / (mix_ * beta_ * h * h), cv = 1 / (mix_ * gamma_ * h);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
       const int g = groups[grp];
@@ -971,13 +965,9 @@ class HhtIntegrator final : public Integrator {
         x[L::kEIter + k] = qn_[g + k];
       }
       for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
-      double* rq = &rotation_[32 * grp];
-      double* rv = rq + 16;
-      HhtRotationDerivative(sc, h, r, x, rq, rv);
-      for (int i = 0; i < 16; ++i) {
-        rq[i] = rq[i] * cq - (i % 5 == 0 ? 1 : 0);
-        rv[i] = rv[i] * cv - (i % 5 == 0 ? 1 : 0);
-      }
+      double de[16], ded[16];
+      HhtRotationDerivative(sc, h, r, x, de, ded);
+      HhtRotationBlock(sc, h, de, ded, &rotation_[32 * grp]);
     }
   }
 

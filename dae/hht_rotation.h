@@ -12,6 +12,16 @@ namespace mbdae::dae {
 struct HhtRotationScheme {
   double alpha = 0, beta = 0, gamma = 0, mix = 1;
   bool equilibrium = true;
+  // The constants of HHT with this alpha in the equilibrium (or else negrut) form.
+  static HhtRotationScheme Of(double alpha, bool equilibrium) {
+    HhtRotationScheme sc;
+    sc.alpha = alpha;
+    sc.beta = (1 - alpha) * (1 - alpha) / 4;
+    sc.gamma = 0.5 - alpha;
+    sc.mix = equilibrium ? 1 + alpha : 1.0;
+    sc.equilibrium = equilibrium;
+    return sc;
+  }
 };
 
 // Inputs x of the map: e_n (4), e'_n (4), a_n (4), wbar_n (3), a_{n+1} (4) and the
@@ -129,5 +139,18 @@ void HhtRotationMap(const HhtRotationScheme& sc, double h, double r, const T* x,
 // finite differences.
 void HhtRotationDerivative(const HhtRotationScheme& sc, double h, double r, const double* x,
                            double* de_da, double* ded_da);
+
+// A group's block of the Newton matrix with rotation blocks (HhtNewtonMatrix::Assemble),
+// 32 numbers from de_da and ded_da (row-major): de/da / (mix beta h^2) - I, then
+// ded/da / (mix gamma h) - I.
+inline void HhtRotationBlock(const HhtRotationScheme& sc, double h, const double* de_da,
+                             const double* ded_da, double* block) {
+  const double cq = 1 / (sc.mix * sc.beta * h * h), cv = 1 / (sc.mix * sc.gamma * h);
+  for (int i = 0; i < 16; ++i) {
+    const double one = i % 5 == 0 ? 1 : 0;  // the diagonal of a row-major 4 x 4
+    block[i] = de_da[i] * cq - one;
+    block[16 + i] = ded_da[i] * cv - one;
+  }
+}
 
 }  // namespace mbdae::dae

@@ -60,13 +60,7 @@ GroupJac GroupJacobian(const Scheme& sc, double h, double r, const double* xin) 
   using AD = Eigen::AutoDiffScalar<Deriv>;
   AD x[23], y[11];
   for (int i = 0; i < 23; ++i) x[i] = AD(xin[i], 23, i);
-  dae::HhtRotationScheme rs;
-  rs.alpha = sc.alpha;
-  rs.beta = sc.beta;
-  rs.gamma = sc.gamma;
-  rs.mix = sc.mix;
-  rs.equilibrium = sc.eq;
-  dae::HhtRotationMap(rs, h, r, x, y);
+  dae::HhtRotationMap(dae::HhtRotationScheme::Of(sc.alpha, sc.eq), h, r, x, y);
   Eigen::Matrix<double, 11, 23> J;
   for (int i = 0; i < 11; ++i) J.row(i) = y[i].derivatives().transpose();
   const Eigen::Matrix<double, 11, 4> Jit = J.rightCols<4>();
@@ -203,7 +197,6 @@ class Sweeps {
     if (!groups_.empty()) {
       Wbar(k - 1, wbar_.data());
       const double r = Ratio(k);
-      const double cq = 1 / (sc_.mix * sc_.beta * h * h), cv = 1 / (sc_.mix * sc_.gamma * h);
       for (size_t grp = 0; grp < groups_.size(); ++grp) {
         const int g = groups_[grp];
         double x[23];
@@ -218,12 +211,14 @@ class Sweeps {
         T_[grp] = GroupJacobian(sc_, h, r, x);
         // The Newton matrix's rotation blocks (dae/hht.h, HhtNewtonMatrix::Assemble):
         // with them it is Rt_u itself.
-        double* rq = &rotation_[32 * grp];
+        double de[16], ded[16];
         for (int i = 0; i < 4; ++i)
           for (int j = 0; j < 4; ++j) {
-            rq[4 * i + j] = T_[grp](i, 15 + j) * cq - (i == j ? 1 : 0);
-            rq[16 + 4 * i + j] = T_[grp](4 + i, 15 + j) * cv - (i == j ? 1 : 0);
+            de[4 * i + j] = T_[grp](i, dae::HhtRotationLayout::kA1 + j);
+            ded[4 * i + j] = T_[grp](4 + i, dae::HhtRotationLayout::kA1 + j);
           }
+        dae::HhtRotationBlock(dae::HhtRotationScheme::Of(sc_.alpha, sc_.eq), h, de, ded,
+                              &rotation_[32 * grp]);
       }
     }
     newton_.AssembleFrom(h, sm_.all_values(), jac_.data(),

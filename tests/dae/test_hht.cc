@@ -152,6 +152,38 @@ TEST(FreeBodySystem, DerivativesMatchFiniteDifferences) {
   }
 }
 
+// The HHT step's residual (r_q, r_c) written out from the definitions at (t, q1, v1) with
+// a_{n+1} = a1 and lambda_{n+1} = lam (the previous step's terms, constants, left out):
+// r_q = (M a + F) / (1 + alpha) (equilibrium form) or M a / (1 + alpha) + F (negrut),
+// F = C_q^T lambda - Q, r_c = C / (mix beta h^2) with cq = mix beta h^2.
+Eigen::VectorXd StepResidual(MechanicalSystem& sys, double t, const std::vector<double>& q1,
+                             const std::vector<double>& v1, const std::vector<double>& a1,
+                             const Eigen::VectorXd& lam, bool equilibrium, double alpha,
+                             double cq) {
+  const int nq = sys.num_coordinates(), nc = sys.num_constraints();
+  std::vector<double> Q(nq), C(nc), M(sys.pattern(Matrix::kMass).nnz()),
+      Cq(sys.pattern(Matrix::kConstraintDq).nnz());
+  EvalInput in;
+  in.t = t;
+  in.q = q1.data();
+  in.v = v1.data();
+  EvalOutput out;
+  out.force = Q.data();
+  out.constraint = C.data();
+  out[Matrix::kMass] = M.data();
+  out[Matrix::kConstraintDq] = Cq.data();
+  EXPECT_EQ(sys.Evaluate(in, out), 0);
+  const Eigen::MatrixXd Md = Dense(sys.pattern(Matrix::kMass), M);
+  const Eigen::MatrixXd Cd = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
+  const Eigen::Map<const Eigen::VectorXd> av(a1.data(), nq), Qv(Q.data(), nq);
+  const Eigen::VectorXd F = Cd.transpose() * lam - Qv;
+  Eigen::VectorXd r(nq + nc);
+  r.head(nq) = equilibrium ? Eigen::VectorXd((Md * av + F) / (1 + alpha))
+                           : Eigen::VectorXd(Md * av / (1 + alpha) + F);
+  for (int j = 0; j < nc; ++j) r[nq + j] = C[j] / cq;
+  return r;
+}
+
 // HhtNewtonMatrix (the integrator's Newton matrix) is the derivative of the step's
 // residual with respect to (a_{n+1}, lambda_{n+1}) through Newmark's formulas, in both
 // forms: central differences of the residual written out here from the definitions.
@@ -182,34 +214,15 @@ TEST(HhtNewtonMatrix, IsTheDerivativeOfTheStepResidual) {
       // The residual at (a + da, lambda + dl), with q, v moved by Newmark's formulas
       // (terms of the previous step are constants and left out).
       auto residual = [&](const Eigen::VectorXd& x) {
-        std::vector<double> q1(nq), v1(nq), a1(nq), Q(nq), C(nc),
-            M(sys.pattern(Matrix::kMass).nnz()), Cq(sys.pattern(Matrix::kConstraintDq).nnz());
+        std::vector<double> q1(nq), v1(nq), a1(nq);
         for (int i = 0; i < nq; ++i) {
           q1[i] = q[i] + mix * beta * h * h * x[i];
           v1[i] = v[i] + mix * gamma * h * x[i];
           a1[i] = a[i] + x[i];
         }
-        EvalInput in;
-        in.t = t;
-        in.q = q1.data();
-        in.v = v1.data();
-        EvalOutput out;
-        out.force = Q.data();
-        out.constraint = C.data();
-        out[Matrix::kMass] = M.data();
-        out[Matrix::kConstraintDq] = Cq.data();
-        EXPECT_EQ(sys.Evaluate(in, out), 0);
-        const Eigen::MatrixXd Md = Dense(sys.pattern(Matrix::kMass), M);
-        const Eigen::MatrixXd Cd = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
         Eigen::VectorXd l1(nc);
         for (int j = 0; j < nc; ++j) l1[j] = lam[j] + x[nq + j];
-        const Eigen::Map<const Eigen::VectorXd> av(a1.data(), nq), Qv(Q.data(), nq);
-        const Eigen::VectorXd F = Cd.transpose() * l1 - Qv;
-        Eigen::VectorXd r(n);
-        r.head(nq) = eq ? Eigen::VectorXd((Md * av + F) / (1 + alpha))
-                        : Eigen::VectorXd(Md * av / (1 + alpha) + F);
-        for (int j = 0; j < nc; ++j) r[nq + j] = C[j] / (mix * beta * h * h);
-        return r;
+        return StepResidual(sys, t, q1, v1, a1, l1, eq, alpha, mix * beta * h * h);
       };
       // The residual is nearly linear in (da, dl) (the state moves by h^2 da): a large
       // step keeps the rounding of C / (beta h^2) small.
@@ -250,12 +263,7 @@ TEST(HhtNewtonMatrix, RotationBlocksAreTheDerivativeOfTheModifiedStepResidual) {
       HhtNewtonMatrix newton(sys, opt, /*rotation_blocks=*/true);
       ASSERT_TRUE(newton.has_rotation_blocks());
       const bool eq = form == HhtOptions::Form::kEquilibrium;
-      HhtRotationScheme sc;
-      sc.alpha = alpha;
-      sc.beta = (1 - alpha) * (1 - alpha) / 4;
-      sc.gamma = 0.5 - alpha;
-      sc.mix = eq ? 1 + alpha : 1.0;
-      sc.equilibrium = eq;
+      const HhtRotationScheme sc = HhtRotationScheme::Of(alpha, eq);
       const double h = 0.05, t = 0.3, r = eq ? 1.3 : 1.0;
       const double cq = sc.mix * sc.beta * h * h, cv = sc.mix * sc.gamma * h;
       // The previous state (unit e_n, e'_n orthogonal to it, a fast spin) and the iterate.
@@ -305,30 +313,11 @@ TEST(HhtNewtonMatrix, RotationBlocksAreTheDerivativeOfTheModifiedStepResidual) {
         }
       };
       auto residual = [&](const Eigen::VectorXd& x) {
-        std::vector<double> q1, v1, a, Q(nq), C(nc), M(sys.pattern(Matrix::kMass).nnz()),
-            Cq(sys.pattern(Matrix::kConstraintDq).nnz());
+        std::vector<double> q1, v1, a;
         kinematics(x, &q1, &v1, &a);
-        EvalInput in;
-        in.t = t;
-        in.q = q1.data();
-        in.v = v1.data();
-        EvalOutput out;
-        out.force = Q.data();
-        out.constraint = C.data();
-        out[Matrix::kMass] = M.data();
-        out[Matrix::kConstraintDq] = Cq.data();
-        EXPECT_EQ(sys.Evaluate(in, out), 0);
-        const Eigen::MatrixXd Md = Dense(sys.pattern(Matrix::kMass), M);
-        const Eigen::MatrixXd Cd = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
         Eigen::VectorXd l1(nc);
         for (int j = 0; j < nc; ++j) l1[j] = lam[j] + x[nq + j];
-        const Eigen::Map<const Eigen::VectorXd> av(a.data(), nq), Qv(Q.data(), nq);
-        const Eigen::VectorXd F = Cd.transpose() * l1 - Qv;
-        Eigen::VectorXd res(n);
-        res.head(nq) = eq ? Eigen::VectorXd((Md * av + F) / (1 + alpha))
-                          : Eigen::VectorXd(Md * av / (1 + alpha) + F);
-        for (int j = 0; j < nc; ++j) res[nq + j] = C[j] / cq;
-        return res;
+        return StepResidual(sys, t, q1, v1, a, l1, eq, alpha, cq);
       };
       // The matrix at the iterate, with the blocks at its fixed point e_{n+1}.
       std::vector<double> q1, v1, a;
@@ -342,12 +331,9 @@ TEST(HhtNewtonMatrix, RotationBlocksAreTheDerivativeOfTheModifiedStepResidual) {
         in[L::kEIter + k] = q1[g + k];
       }
       for (int k = 0; k < 3; ++k) in[L::kWbar0 + k] = wbar0[k];
-      double rot[32];
-      HhtRotationDerivative(sc, h, r, in, rot, rot + 16);
-      for (int i = 0; i < 16; ++i) {
-        rot[i] = rot[i] / cq - (i % 5 == 0 ? 1 : 0);
-        rot[16 + i] = rot[16 + i] / cv - (i % 5 == 0 ? 1 : 0);
-      }
+      double de[16], ded[16], rot[32];
+      HhtRotationDerivative(sc, h, r, in, de, ded);
+      HhtRotationBlock(sc, h, de, ded, rot);
       std::vector<double> exact(newton.pattern().nnz()), first(newton.pattern().nnz());
       ASSERT_EQ(newton.Assemble(t, h, q1.data(), v1.data(), a1.data(), lam.data(),
                                 exact.data(), nullptr, nullptr, rot),
@@ -382,12 +368,7 @@ TEST(HhtRotationDerivative, MatchesAutoDiffOfTheMap) {
   std::uniform_real_distribution<double> u(-1, 1);
   double worst = 0;
   for (int trial = 0; trial < 40; ++trial) {
-    HhtRotationScheme sc;
-    sc.equilibrium = trial % 2 == 0;
-    sc.alpha = trial % 4 < 2 ? -0.2 : 0.0;
-    sc.beta = (1 - sc.alpha) * (1 - sc.alpha) / 4;
-    sc.gamma = 0.5 - sc.alpha;
-    sc.mix = sc.equilibrium ? 1 + sc.alpha : 1.0;
+    const HhtRotationScheme sc = HhtRotationScheme::Of(trial % 4 < 2 ? -0.2 : 0.0, trial % 2 == 0);
     const bool tiny = trial >= 30;  // theta ~ 1e-9: the series branch
     const double h = tiny ? 1e-5 : 0.05 * (1 + trial % 3), r = 1.2;
     double x[L::kInputs];
