@@ -129,6 +129,38 @@ def summary(runs, ref, attrs=()):
     return row
 
 
+def option_table(rows, key, baseline, used, work_cost):
+    """The table of a study of one HHT option on the chains (rows: hht_study's, each with
+    n, h, solver and the option under `key`): per row N, h, the solver used, the attrs
+    `used` (pairs of attribute and column title), the tip error, steps, iterations and
+    factorisations per step, the work per step (iterations + work_cost[solver] x
+    factorisations), its ratio to the row of the same N, h and solver whose option is
+    `baseline`, the median solver time and its ratio to that row's."""
+    lines = ["| N | h | solver | %s | tip error [m] | steps | iterations / step "
+             "| factorisations / step | work / step | work ratio | solver CPU [s] | time ratio |"
+             % " | ".join(title for _, title in used),
+             "| ---: | ---: | --- | %s | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
+             % " | ".join("---" for _ in used)]
+    base = {(r["n"], r["h"], r["solver"]): r for r in rows if r[key] == baseline and "solver_time" in r}
+    for r in rows:
+        if "solver_time" not in r:
+            cells = [""] * len(used)
+            cells[-1] = str(r[key])
+            lines.append("| %d | %g | %s | %s | failed | | | | | | | |"
+                         % (r["n"], r["h"], r["solver"], " | ".join(cells)))
+            continue
+        b = base.get((r["n"], r["h"], r["solver"]))
+        c = work_cost[r["solver"]]
+        it, fa = r["newton"] / r["steps"], r["factorizations"] / r["steps"]
+        work = it + c * fa
+        work_b = (b["newton"] + c * b["factorizations"]) / b["steps"] if b else None
+        lines.append("| %d | %g | %s | %s | %.4g | %d | %.2f | %.3f | %.2f | %s | %.3g | %s |" % (
+            r["n"], r["h"], r["linear_solver_used"], " | ".join(str(r[attr]) for attr, _ in used),
+            r["error"], r["steps"], it, fa, work, "%.2f" % (work / work_b) if b else "",
+            r["solver_time"], "%.2f" % (r["solver_time"] / b["solver_time"]) if b else ""))
+    return lines
+
+
 def write(results, name, load_before, rows, make_lines):
     """results/NAME.json (the command, date, loads and rows) and results/NAME.md, the lines
     make_lines(that json's dict) gives, printed too."""

@@ -27,44 +27,28 @@ WORK_COST = {"tree": 3, "klu": 5}
 ATTRS = ("linear_solver_used", "jacobian_cost_used", "predictor_used")
 
 
+def lines_of(out, repeats):
+    """The results file's lines from write's dict."""
+    lines = ["# HHT's predictor of the Newton iteration on the ball chains", "",
+             "`/usr/bin/python3 bench/predictor.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
+             "average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = -0.1, "
+             "equilibrium form, modified), Newton threshold 1e-12; the tree with its refresh by cost "
+             "(3), KLU with its rules (cost 0); predictor: `--predictor`; work: iterations + c x "
+             "factorisations per step with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
+             "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
+             "the repeats; ratio: against the constant predictor with the same solver."
+             % (repeats, out["date"], out["load_before"], out["load_after"]), ""]
+    used = (("predictor_used", "predictor"),)
+    return lines + chain_runs.option_table(out["rows"], "predictor", "constant", used, WORK_COST)
+
+
 def main():
     a = chain_runs.parse_args(__doc__, STEPS)
     runs_of = [(n, h, solver, pred) for n in a.n for h in STEPS[n] for solver, pred in SETTINGS]
     rows, load_before = chain_runs.hht_study(
         a, runs_of, lambda s: ["--linear-solver", s[2], "--predictor", s[3]], ATTRS,
         lambda s: "N = %d, h = %g, %s, %s" % s, ("n", "h", "solver", "predictor"))
-
-    def lines_of(out):
-        lines = ["# HHT's predictor of the Newton iteration on the ball chains", "",
-                 "`/usr/bin/python3 bench/predictor.py --mbdae BUILD/mbdae --repeats %d` on %s, load "
-                 "average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = -0.1, "
-                 "equilibrium form, modified), Newton threshold 1e-12; the tree with its refresh by cost "
-                 "(3), KLU with its rules (cost 0); predictor: `--predictor`; work: iterations + c x "
-                 "factorisations per step with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
-                 "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
-                 "the repeats; ratio: against the constant predictor with the same solver."
-                 % (a.repeats, out["date"], load_before, out["load_after"]), "",
-                 "| N | h | solver | predictor | tip error [m] | steps | iterations / step "
-                 "| factorisations / step | work / step | work ratio | solver CPU [s] | time ratio |",
-                 "| ---: | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-        base = {(r["n"], r["h"], r["solver"]): r for r in rows
-                if r["predictor"] == "constant" and "solver_time" in r}
-        for r in rows:
-            if "solver_time" not in r:
-                lines.append("| %d | %g | %s | %s | failed | | | | | | | |" % (r["n"], r["h"], r["solver"], r["predictor"]))
-                continue
-            b = base.get((r["n"], r["h"], r["solver"]))
-            c = WORK_COST[r["solver"]]
-            it, fa = r["newton"] / r["steps"], r["factorizations"] / r["steps"]
-            work = it + c * fa
-            work_b = (b["newton"] + c * b["factorizations"]) / b["steps"] if b else None
-            lines.append("| %d | %g | %s | %s | %.4g | %d | %.2f | %.3f | %.2f | %s | %.3g | %s |" % (
-                r["n"], r["h"], r["linear_solver_used"], r["predictor_used"], r["error"], r["steps"], it, fa,
-                work, "%.2f" % (work / work_b) if b else "", r["solver_time"],
-                "%.2f" % (r["solver_time"] / b["solver_time"]) if b else ""))
-        return lines
-
-    chain_runs.write(a.results, "predictor", load_before, rows, lines_of)
+    chain_runs.write(a.results, "predictor", load_before, rows, lambda out: lines_of(out, a.repeats))
 
 
 if __name__ == "__main__":

@@ -27,46 +27,29 @@ WORK_COST = {"tree": 3, "klu": 5}
 ATTRS = ("linear_solver_used", "predictor_used", "rotation_jacobian_used")
 
 
+def lines_of(out, repeats):
+    """The results file's lines from write's dict."""
+    lines = ["# HHT's Newton matrix with the exact rotation blocks on the ball chains", "",
+             "`/usr/bin/python3 bench/rotation_jacobian.py --mbdae BUILD/mbdae --repeats %d` on %s, "
+             "load average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = "
+             "-0.1, equilibrium form, modified), Newton threshold 1e-12; the tree with its defaults "
+             "(refresh by cost 3, linear predictor), KLU with its own (cost 0, constant predictor); "
+             "rotation blocks: `--rotation-jacobian`; work: iterations + c x factorisations per step "
+             "with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
+             "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
+             "the repeats; ratios: against the first-order matrix with the same solver."
+             % (repeats, out["date"], out["load_before"], out["load_after"]), ""]
+    used = (("predictor_used", "predictor"), ("rotation_jacobian_used", "rotation blocks"))
+    return lines + chain_runs.option_table(out["rows"], "rotation_jacobian", "first-order", used, WORK_COST)
+
+
 def main():
     a = chain_runs.parse_args(__doc__, STEPS)
     runs_of = [(n, h, solver, rot) for n in a.n for h in STEPS[n] for solver, rot in SETTINGS]
     rows, load_before = chain_runs.hht_study(
         a, runs_of, lambda s: ["--linear-solver", s[2], "--rotation-jacobian", s[3]], ATTRS,
         lambda s: "N = %d, h = %g, %s, %s" % s, ("n", "h", "solver", "rotation_jacobian"))
-
-    def lines_of(out):
-        lines = ["# HHT's Newton matrix with the exact rotation blocks on the ball chains", "",
-                 "`/usr/bin/python3 bench/rotation_jacobian.py --mbdae BUILD/mbdae --repeats %d` on %s, "
-                 "load average %.1f before and %.1f after. 1 s of each chain, HHT fixed step (alpha = "
-                 "-0.1, equilibrium form, modified), Newton threshold 1e-12; the tree with its defaults "
-                 "(refresh by cost 3, linear predictor), KLU with its own (cost 0, constant predictor); "
-                 "rotation blocks: `--rotation-jacobian`; work: iterations + c x factorisations per step "
-                 "with c = 3 (tree) or 5 (klu); error: the tip at t = 1 s against "
-                 "`bench/results/peers/reference_chainN.json`; time: the solver's CPU time, median of "
-                 "the repeats; ratios: against the first-order matrix with the same solver."
-                 % (a.repeats, out["date"], load_before, out["load_after"]), "",
-                 "| N | h | solver | predictor | rotation blocks | tip error [m] | steps | iterations / step "
-                 "| factorisations / step | work / step | work ratio | solver CPU [s] | time ratio |",
-                 "| ---: | ---: | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-        base = {(r["n"], r["h"], r["solver"]): r for r in rows
-                if r["rotation_jacobian"] == "first-order" and "solver_time" in r}
-        for r in rows:
-            if "solver_time" not in r:
-                lines.append("| %d | %g | %s | | %s | failed | | | | | | | |"
-                             % (r["n"], r["h"], r["solver"], r["rotation_jacobian"]))
-                continue
-            b = base.get((r["n"], r["h"], r["solver"]))
-            c = WORK_COST[r["solver"]]
-            it, fa = r["newton"] / r["steps"], r["factorizations"] / r["steps"]
-            work = it + c * fa
-            work_b = (b["newton"] + c * b["factorizations"]) / b["steps"] if b else None
-            lines.append("| %d | %g | %s | %s | %s | %.4g | %d | %.2f | %.3f | %.2f | %s | %.3g | %s |" % (
-                r["n"], r["h"], r["linear_solver_used"], r["predictor_used"], r["rotation_jacobian_used"],
-                r["error"], r["steps"], it, fa, work, "%.2f" % (work / work_b) if b else "",
-                r["solver_time"], "%.2f" % (r["solver_time"] / b["solver_time"]) if b else ""))
-        return lines
-
-    chain_runs.write(a.results, "rotation_jacobian", load_before, rows, lines_of)
+    chain_runs.write(a.results, "rotation_jacobian", load_before, rows, lambda out: lines_of(out, a.repeats))
 
 
 if __name__ == "__main__":

@@ -402,6 +402,31 @@ TEST(BlockTreeLu, HhtRefreshesTheMatrixByCost) {
   EXPECT_EQ(KluLikeTheTree(c, klu_cost, *by_cost.tree).jacobian_cost, cost);
 }
 
+// Two tree runs of the 30-rod chain (0.2 s) that differ in one option, `before` and
+// `after`: the same steps and the states within the Newton threshold's reach of each
+// other (1e-9 relative); printed with their Newton iterations, factorisations and work
+// (iterations + kTreeJacobianCost x factorisations). Returns after's iterations and work
+// as fractions of before's.
+struct WorkRatio {
+  double iterations, work;
+};
+WorkRatio CompareTreeRuns(const char* before_name, const Integrator& before,
+                          const char* after_name, const Integrator& after) {
+  const Summary& s0 = before.summary();
+  const Summary& s1 = after.summary();
+  EXPECT_EQ(s1.steps_accepted, s0.steps_accepted);
+  const double cost = HhtOptions::kTreeJacobianCost;
+  const double work0 = s0.newton_iterations + cost * s0.factorizations;
+  const double work1 = s1.newton_iterations + cost * s1.factorizations;
+  const double dq = RelativeDifference(after.state().q, before.state().q);
+  std::printf("HHT, 30 rods, 0.2 s, tree, %ld steps: %s %ld iterations, %ld factorisations "
+              "(work %.0f); %s %ld, %ld (work %.0f, %.3f of it); q differs by %.1e\n",
+              s0.steps_accepted, before_name, s0.newton_iterations, s0.factorizations, work0,
+              after_name, s1.newton_iterations, s1.factorizations, work1, work1 / work0, dq);
+  EXPECT_LT(dq, 1e-9);
+  return {static_cast<double>(s1.newton_iterations) / s0.newton_iterations, work1 / work0};
+}
+
 // The linear predictor (HhtOptions::predictor; the tree's default): on the 30-rod chain
 // with the tree's refresh by cost, fewer Newton iterations and less work (iterations +
 // cost x factorisations) than the constant predictor, the same steps, and the states
@@ -411,27 +436,15 @@ TEST(BlockTreeLu, HhtLinearPredictorSavesIterations) {
   Consistent c(ChainYaml(30, false));
   KluAndTree constant(c, 0.2, -1, HhtOptions::Predictor::kConstant);
   KluAndTree linear(c, 0.2, -1, HhtOptions::Predictor::kAuto);  // auto: linear with the tree
-  const Summary& s0 = constant.tree->summary();
-  const Summary& s1 = linear.tree->summary();
-  EXPECT_EQ(s0.predictor, "constant");
-  EXPECT_EQ(s1.predictor, "linear");
+  EXPECT_EQ(constant.tree->summary().predictor, "constant");
+  EXPECT_EQ(linear.tree->summary().predictor, "linear");
   EXPECT_EQ(constant.klu->summary().predictor, "constant");  // auto with KLU
-  EXPECT_EQ(s1.steps_accepted, s0.steps_accepted);
-  const double cost = HhtOptions::kTreeJacobianCost;
-  const double work0 = s0.newton_iterations + cost * s0.factorizations;
-  const double work1 = s1.newton_iterations + cost * s1.factorizations;
-  const double dq = RelativeDifference(linear.tree->state().q, constant.tree->state().q);
-  std::printf("HHT, 30 rods, 0.2 s, tree, %ld steps: constant predictor %ld iterations, %ld "
-              "factorisations (work %.0f); linear %ld, %ld (work %.0f, %.3f of it); q differs "
-              "by %.1e\n",
-              s0.steps_accepted, s0.newton_iterations, s0.factorizations, work0,
-              s1.newton_iterations, s1.factorizations, work1, work1 / work0, dq);
-  EXPECT_LT(s1.newton_iterations, 0.9 * s0.newton_iterations);
-  EXPECT_LT(work1, 0.9 * work0);
-  EXPECT_LT(dq, 1e-9);
+  const WorkRatio w = CompareTreeRuns("constant predictor", *constant.tree, "linear", *linear.tree);
+  EXPECT_LT(w.iterations, 0.9);
+  EXPECT_LT(w.work, 0.9);
 
   HhtOptions klu_linear;
-  klu_linear.jacobian_cost = cost;
+  klu_linear.jacobian_cost = HhtOptions::kTreeJacobianCost;
   klu_linear.predictor = HhtOptions::Predictor::kLinear;
   EXPECT_EQ(KluLikeTheTree(c, klu_linear, *linear.tree).predictor, "linear");
 }
@@ -446,27 +459,16 @@ TEST(BlockTreeLu, HhtExactRotationJacobianSavesIterations) {
   using R = HhtOptions::RotationJacobian;
   KluAndTree first(c, 0.2, -1, HhtOptions::Predictor::kAuto, R::kFirstOrder);
   KluAndTree exact(c, 0.2, -1, HhtOptions::Predictor::kAuto, R::kAuto);  // auto: exact
-  const Summary& s0 = first.tree->summary();
-  const Summary& s1 = exact.tree->summary();
-  EXPECT_EQ(s0.rotation_jacobian, "first-order");
-  EXPECT_EQ(s1.rotation_jacobian, "exact");
+  EXPECT_EQ(first.tree->summary().rotation_jacobian, "first-order");
+  EXPECT_EQ(exact.tree->summary().rotation_jacobian, "exact");
   EXPECT_EQ(first.klu->summary().rotation_jacobian, "first-order");  // auto with KLU
-  EXPECT_EQ(s1.steps_accepted, s0.steps_accepted);
-  const double cost = HhtOptions::kTreeJacobianCost;
-  const double work0 = s0.newton_iterations + cost * s0.factorizations;
-  const double work1 = s1.newton_iterations + cost * s1.factorizations;
-  const double dq = RelativeDifference(exact.tree->state().q, first.tree->state().q);
-  std::printf("HHT, 30 rods, 0.2 s, tree, %ld steps: first-order matrix %ld iterations, %ld "
-              "factorisations (work %.0f); exact rotation blocks %ld, %ld (work %.0f, %.3f of "
-              "it); q differs by %.1e\n",
-              s0.steps_accepted, s0.newton_iterations, s0.factorizations, work0,
-              s1.newton_iterations, s1.factorizations, work1, work1 / work0, dq);
-  EXPECT_LT(s1.newton_iterations, 0.95 * s0.newton_iterations);
-  EXPECT_LT(work1, 0.97 * work0);
-  EXPECT_LT(dq, 1e-9);
+  const WorkRatio w =
+      CompareTreeRuns("first-order matrix", *first.tree, "exact rotation blocks", *exact.tree);
+  EXPECT_LT(w.iterations, 0.95);
+  EXPECT_LT(w.work, 0.97);
 
   HhtOptions klu_exact;
-  klu_exact.jacobian_cost = cost;
+  klu_exact.jacobian_cost = HhtOptions::kTreeJacobianCost;
   klu_exact.predictor = HhtOptions::Predictor::kLinear;
   klu_exact.rotation_jacobian = R::kExact;
   EXPECT_EQ(KluLikeTheTree(c, klu_exact, *exact.tree).rotation_jacobian, "exact");
