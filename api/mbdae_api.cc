@@ -30,6 +30,7 @@
 #include "api/session.h"
 #include "apps/cli.h"
 #include "dae/format.h"
+#include "dae/hht.h"
 #include "dae/kinematic.h"
 #include "dae/klu_solver.h"
 #include "dae/sparse.h"
@@ -471,16 +472,11 @@ namespace {
 
 // value if it is one of choices, else an ApiError "option KEY: expected A, B or C, got 'V'".
 std::string ParseOptionChoice(const std::string& key, const char* value,
-                              std::initializer_list<const char*> choices) {
+                              const std::vector<std::string>& choices) {
   const std::string v = value;
-  std::string expected;
-  size_t i = 0;
-  for (const char* c : choices) {
-    if (v == c) return v;
-    expected += (i == 0 ? "" : i + 1 == choices.size() ? " or " : ", ") + std::string(c);
-    ++i;
-  }
-  throw ApiError(MBDAE_ERROR_INPUT, "option " + key + ": expected " + expected + ", got '" + v + "'");
+  if (std::find(choices.begin(), choices.end(), v) != choices.end()) return v;
+  throw ApiError(MBDAE_ERROR_INPUT,
+                 "option " + key + ": expected " + JoinOr(choices) + ", got '" + v + "'");
 }
 
 bool ParseOptionBool(const std::string& key, const char* value) {
@@ -527,14 +523,14 @@ void SetOption(mbdae_model& m, const std::string& key, const char* value) {
   } else if (key == "ida.dense_output") {
     o.ida_dense_output = ParseOptionBool(key, value);
   } else if (key == "hht.form") {
-    o.hht_form = ParseOptionChoice(key, value, {"equilibrium", "negrut"});
+    o.hht_form = ParseOptionChoice(key, value, dae::HhtFormNames());
   } else if (key == "hht.predictor") {
-    o.hht_predictor = ParseOptionChoice(key, value, {"auto", "constant", "linear"});
+    o.hht_predictor = ParseOptionChoice(key, value, dae::HhtPredictorNames());
   } else if (key == "hht.rotation_jacobian") {
-    o.hht_rotation_jacobian = ParseOptionChoice(key, value, {"auto", "first-order", "exact"});
+    o.hht_rotation_jacobian = ParseOptionChoice(key, value, dae::HhtRotationJacobianNames());
   } else if (key == "hht.linear_solver" || key == "ida.linear_solver") {
     (key == "hht.linear_solver" ? o.hht_linear_solver : o.ida_linear_solver) =
-        ParseOptionChoice(key, value, {"klu", "tree"});
+        ParseOptionChoice(key, value, dae::HhtLinearSolverNames());
   } else if (key == "ida.rtol") {
     o.ida_rtol = ParseOptionNumber(key, value);
   } else if (key == "ida.atol") {

@@ -1,6 +1,7 @@
 #include "apps/cli.h"
 
 #include "dae/format.h"
+#include "dae/hht.h"
 #include "mbs/model_writer.h"
 
 #include <fcntl.h>
@@ -105,17 +106,10 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       if (inline_value) throw UsageError(arg + ": takes no value");
     };
     // One of `allowed`, else "ARG: expected A, B or C, got 'V'".
-    auto choice = [&](std::initializer_list<const char*> allowed) {
+    auto choice = [&](const std::vector<std::string>& allowed) {
       const std::string v = value();
-      std::string list;
-      size_t k = 0;
-      for (const char* a : allowed) {
-        if (v == a) return v;
-        if (k > 0) list += k + 1 == allowed.size() ? " or " : ", ";
-        list += a;
-        ++k;
-      }
-      throw UsageError(arg + ": expected " + list + ", got '" + v + "'");
+      if (std::find(allowed.begin(), allowed.end(), v) != allowed.end()) return v;
+      throw UsageError(arg + ": expected " + JoinOr(allowed) + ", got '" + v + "'");
     };
     auto only_simulate = [&]() {
       if (!sim) throw UsageError("option " + arg + " is only for `simulate` and `gradient`", true);
@@ -225,19 +219,20 @@ CommandLine ParseCommandLine(const std::vector<std::string>& args) {
       cl.overrides.hht_dense_output = cl.overrides.ida_dense_output = false;
     } else if (arg == "--hht-form") {
       only_simulate();
-      cl.overrides.hht_form = choice({"equilibrium", "negrut"});
+      cl.overrides.hht_form = choice(dae::HhtFormNames());
     } else if (arg == "--hht-start") {
       only_simulate();
-      cl.overrides.hht_start = choice({"consistent", "perturbed"});
+      cl.overrides.hht_start = choice(dae::HhtStartNames());
     } else if (arg == "--predictor") {
       only_simulate();
-      cl.overrides.hht_predictor = choice({"auto", "constant", "linear"});
+      cl.overrides.hht_predictor = choice(dae::HhtPredictorNames());
     } else if (arg == "--rotation-jacobian") {
       only_simulate();
-      cl.overrides.hht_rotation_jacobian = choice({"auto", "first-order", "exact"});
+      cl.overrides.hht_rotation_jacobian = choice(dae::HhtRotationJacobianNames());
     } else if (arg == "--linear-solver") {
       only_simulate();
-      cl.overrides.hht_linear_solver = cl.overrides.ida_linear_solver = choice({"klu", "tree"});
+      cl.overrides.hht_linear_solver = cl.overrides.ida_linear_solver =
+          choice(dae::HhtLinearSolverNames());
     } else if (arg == "--output-bodies" || arg == "--output-joints" || arg == "--output-forces" ||
                arg == "--output-measures") {
       // all, none or comma-separated names: the elements given datasets in the results file.

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 namespace mbdae {
 
@@ -20,6 +21,14 @@ inline std::string FormatG(double x, int digits) {
 inline std::string FormatRoundTrip(double x) {
   const std::string s = FormatG(x, 15);
   return std::strtod(s.c_str(), nullptr) == x ? s : FormatG(x, 17);
+}
+
+// The names as a message lists them: "a", "a or b", "a, b or c".
+inline std::string JoinOr(const std::vector<std::string>& names) {
+  std::string s;
+  for (size_t i = 0; i < names.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+  return s;
 }
 
 }  // namespace mbdae

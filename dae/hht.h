@@ -163,6 +163,16 @@ bool ParseHhtPredictor(const std::string& name, HhtOptions::Predictor* predictor
 const char* HhtRotationJacobianName(HhtOptions::RotationJacobian jacobian);
 bool ParseHhtRotationJacobian(const std::string& name, HhtOptions::RotationJacobian* jacobian);
 
+// The names of each choice option, in the order messages list them: what the model file,
+// the command line and the C API accept (HhtFormNames: equilibrium, negrut; HhtStartNames:
+// consistent, perturbed; HhtPredictorNames: auto, constant, linear;
+// HhtRotationJacobianNames: auto, first-order, exact; HhtLinearSolverNames: klu, tree).
+const std::vector<std::string>& HhtFormNames();
+const std::vector<std::string>& HhtStartNames();
+const std::vector<std::string>& HhtPredictorNames();
+const std::vector<std::string>& HhtRotationJacobianNames();
+const std::vector<std::string>& HhtLinearSolverNames();
+
 // "equilibrium" | "negrut"; and the inverse (false for an unknown name).
 const char* HhtFormName(HhtOptions::Form form);
 bool ParseHhtForm(const std::string& name, HhtOptions::Form* form);

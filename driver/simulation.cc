@@ -52,19 +52,19 @@ dae::HhtOptions HhtOptionsOf(const mbs::SimulationSettings& s) {
   o.dense_output = s.hht_dense_output;
   o.newton_tolerance = s.hht_newton_tolerance;
   o.jacobian_cost = s.hht_jacobian_cost;
-  if (!dae::ParseHhtForm(s.hht_form, &o.form))
-    throw InputError("hht settings: form must be equilibrium or negrut, got '" + s.hht_form + "'");
+  auto fail = [](const char* key, const std::vector<std::string>& names, const std::string& v) {
+    return InputError(std::string("hht settings: ") + key + " must be " + JoinOr(names) +
+                      ", got '" + v + "'");
+  };
+  if (!dae::ParseHhtForm(s.hht_form, &o.form)) throw fail("form", dae::HhtFormNames(), s.hht_form);
   if (!dae::ParseHhtStart(s.hht_start, &o.start))
-    throw InputError("hht settings: start must be perturbed or consistent, got '" + s.hht_start + "'");
+    throw fail("start", dae::HhtStartNames(), s.hht_start);
   if (!dae::ParseHhtPredictor(s.hht_predictor, &o.predictor))
-    throw InputError("hht settings: predictor must be auto, constant or linear, got '" +
-                     s.hht_predictor + "'");
+    throw fail("predictor", dae::HhtPredictorNames(), s.hht_predictor);
   if (!dae::ParseHhtRotationJacobian(s.hht_rotation_jacobian, &o.rotation_jacobian))
-    throw InputError("hht settings: rotation_jacobian must be auto, first-order or exact, got '" +
-                     s.hht_rotation_jacobian + "'");
+    throw fail("rotation_jacobian", dae::HhtRotationJacobianNames(), s.hht_rotation_jacobian);
   if (!dae::ParseHhtLinearSolver(s.hht_linear_solver, &o.linear_solver))
-    throw InputError("hht settings: linear_solver must be klu or tree, got '" +
-                     s.hht_linear_solver + "'");
+    throw fail("linear_solver", dae::HhtLinearSolverNames(), s.hht_linear_solver);
   return o;
 }
 

@@ -419,6 +419,14 @@ class Loader {
     Fail(node, element, "unknown " + key + " '" + s + "'" + Suggest(s, names) + " (allowed: " + Join(names) + ")");
   }
 
+  // One of `names` (a choice option whose names another layer owns, e.g. dae::HhtFormNames).
+  std::string Choice(const YAML::Node& node, const std::string& element, const std::string& key,
+                     const std::vector<std::string>& names) const {
+    const std::string s = String(node, element, key);
+    if (std::find(names.begin(), names.end(), s) != names.end()) return s;
+    Fail(node, element, "unknown " + key + " '" + s + "'" + Suggest(s, names) + " (allowed: " + Join(names) + ")");
+  }
+
   // Orientation in one of the three forms: Euler parameters [e0, e1, e2, e3] (normalised
   // when within 1e-6 of unit norm), {axis, angle}, {matrix} (orthonormal, det +1).
   Quat Orientation(const YAML::Node& node, const std::string& element, const std::string& key) const {
@@ -1672,16 +1680,13 @@ class Loader {
           Fail(n, element, "hht newton_tolerance must be below 1, got " + Num(s.hht_newton_tolerance));
       }
       if (const YAML::Node n = h["form"]) {
-        s.hht_form = Enum<std::string>(n, element, "form",
-                                       {{"equilibrium", "equilibrium"}, {"negrut", "negrut"}});
+        s.hht_form = Choice(n, element, "form", dae::HhtFormNames());
       }
       if (const YAML::Node n = h["start"]) {
-        s.hht_start = Enum<std::string>(n, element, "start",
-                                        {{"perturbed", "perturbed"}, {"consistent", "consistent"}});
+        s.hht_start = Choice(n, element, "start", dae::HhtStartNames());
       }
       if (const YAML::Node n = h["linear_solver"]) {
-        s.hht_linear_solver = Enum<std::string>(n, element, "linear_solver",
-                                                {{"klu", "klu"}, {"tree", "tree"}});
+        s.hht_linear_solver = Choice(n, element, "linear_solver", dae::HhtLinearSolverNames());
       }
       if (const YAML::Node n = h["jacobian_cost"]) {
         if (n.IsScalar() && n.Scalar() == "auto") {
@@ -1694,13 +1699,11 @@ class Loader {
         }
       }
       if (const YAML::Node n = h["predictor"]) {
-        s.hht_predictor = Enum<std::string>(n, element, "predictor",
-                                            {{"auto", "auto"}, {"constant", "constant"}, {"linear", "linear"}});
+        s.hht_predictor = Choice(n, element, "predictor", dae::HhtPredictorNames());
       }
       if (const YAML::Node n = h["rotation_jacobian"]) {
-        s.hht_rotation_jacobian = Enum<std::string>(
-            n, element, "rotation_jacobian",
-            {{"auto", "auto"}, {"first-order", "first-order"}, {"exact", "exact"}});
+        s.hht_rotation_jacobian =
+            Choice(n, element, "rotation_jacobian", dae::HhtRotationJacobianNames());
       }
     }
     if (const YAML::Node i = node["ida"]) {
@@ -1708,8 +1711,7 @@ class Loader {
                 "ida");
       if (const YAML::Node n = i["dense_output"]) s.ida_dense_output = Bool(n, element, "dense_output");
       if (const YAML::Node n = i["linear_solver"]) {
-        s.ida_linear_solver = Enum<std::string>(n, element, "linear_solver",
-                                                {{"klu", "klu"}, {"tree", "tree"}});
+        s.ida_linear_solver = Choice(n, element, "linear_solver", dae::HhtLinearSolverNames());
       }
       if (const YAML::Node n = i["rtol"]) s.ida_rtol = positive(n, "ida rtol");
       if (const YAML::Node n = i["atol"]) s.ida_atol = positive(n, "ida atol");
