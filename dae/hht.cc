@@ -134,35 +134,26 @@ constexpr NameTable<HhtOptions::RotationJacobian> kRotationJacobianNames = {
 constexpr NameTable<HhtOptions::LinearSolver> kLinearSolverNames = {
     {"klu", HhtOptions::LinearSolver::kKlu}, {"tree", HhtOptions::LinearSolver::kTree}};
 
+// The names of table, built once per option (each enum has one table).
 template <class E>
-std::vector<std::string> NamesOf(NameTable<E> table) {
-  std::vector<std::string> names;
-  for (const auto& entry : table) names.emplace_back(entry.first);
+const std::vector<std::string>& NamesOf(NameTable<E> table) {
+  static const std::vector<std::string> names = [&] {
+    std::vector<std::string> v;
+    for (const auto& entry : table) v.emplace_back(entry.first);
+    return v;
+  }();
   return names;
 }
 
 }  // namespace
 
-const std::vector<std::string>& HhtFormNames() {
-  static const std::vector<std::string> names = NamesOf(kFormNames);
-  return names;
-}
-const std::vector<std::string>& HhtStartNames() {
-  static const std::vector<std::string> names = NamesOf(kStartNames);
-  return names;
-}
-const std::vector<std::string>& HhtPredictorNames() {
-  static const std::vector<std::string> names = NamesOf(kPredictorNames);
-  return names;
-}
+const std::vector<std::string>& HhtFormNames() { return NamesOf(kFormNames); }
+const std::vector<std::string>& HhtStartNames() { return NamesOf(kStartNames); }
+const std::vector<std::string>& HhtPredictorNames() { return NamesOf(kPredictorNames); }
 const std::vector<std::string>& HhtRotationJacobianNames() {
-  static const std::vector<std::string> names = NamesOf(kRotationJacobianNames);
-  return names;
+  return NamesOf(kRotationJacobianNames);
 }
-const std::vector<std::string>& HhtLinearSolverNames() {
-  static const std::vector<std::string> names = NamesOf(kLinearSolverNames);
-  return names;
-}
+const std::vector<std::string>& HhtLinearSolverNames() { return NamesOf(kLinearSolverNames); }
 
 const char* HhtFormName(HhtOptions::Form form) { return NameOf(form, kFormNames); }
 bool ParseHhtForm(const std::string& name, HhtOptions::Form* form) {

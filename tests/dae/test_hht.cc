@@ -32,30 +32,44 @@ Eigen::MatrixXd Dense(const CscPattern& p, const std::vector<double>& v) {
   return A;
 }
 
-// Consistent a, lambda at (q, v, t): [M C_q^T; C_q 0] [a; lambda] = [Q; gamma].
-State ConsistentState(MechanicalSystem& sys, std::vector<double> q, std::vector<double> v,
-                      double t = 0) {
+// Q, C, gamma, M and C_q of the system at (t, q, v), dense.
+struct DenseEvaluation {
+  Eigen::VectorXd Q, C, gamma;
+  Eigen::MatrixXd M, Cq;
+};
+DenseEvaluation EvaluateDense(MechanicalSystem& sys, double t, const std::vector<double>& q,
+                              const std::vector<double>& v) {
   const int nq = sys.num_coordinates(), nc = sys.num_constraints();
-  std::vector<double> Q(nq), g(nc), M(sys.pattern(Matrix::kMass).nnz()),
-      C(sys.pattern(Matrix::kConstraintDq).nnz());
+  DenseEvaluation e{Eigen::VectorXd::Zero(nq), Eigen::VectorXd::Zero(nc), Eigen::VectorXd::Zero(nc),
+                    {}, {}};
+  std::vector<double> M(sys.pattern(Matrix::kMass).nnz()), Cq(sys.pattern(Matrix::kConstraintDq).nnz());
   EvalInput in;
   in.t = t;
   in.q = q.data();
   in.v = v.data();
   EvalOutput out;
-  out.force = Q.data();
-  out.acc_rhs = g.data();
+  out.force = e.Q.data();
+  out.constraint = e.C.data();
+  out.acc_rhs = e.gamma.data();
   out[Matrix::kMass] = M.data();
-  out[Matrix::kConstraintDq] = C.data();
+  out[Matrix::kConstraintDq] = Cq.data();
   EXPECT_EQ(sys.Evaluate(in, out), 0);
+  e.M = Dense(sys.pattern(Matrix::kMass), M);
+  e.Cq = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
+  return e;
+}
+
+// Consistent a, lambda at (q, v, t): [M C_q^T; C_q 0] [a; lambda] = [Q; gamma].
+State ConsistentState(MechanicalSystem& sys, std::vector<double> q, std::vector<double> v,
+                      double t = 0) {
+  const int nq = sys.num_coordinates(), nc = sys.num_constraints();
+  const DenseEvaluation e = EvaluateDense(sys, t, q, v);
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(nq + nc, nq + nc);
-  A.topLeftCorner(nq, nq) = Dense(sys.pattern(Matrix::kMass), M);
-  const Eigen::MatrixXd Cq = Dense(sys.pattern(Matrix::kConstraintDq), C);
-  A.topRightCorner(nq, nc) = Cq.transpose();
-  A.bottomLeftCorner(nc, nq) = Cq;
+  A.topLeftCorner(nq, nq) = e.M;
+  A.topRightCorner(nq, nc) = e.Cq.transpose();
+  A.bottomLeftCorner(nc, nq) = e.Cq;
   Eigen::VectorXd b(nq + nc);
-  for (int i = 0; i < nq; ++i) b[i] = Q[i];
-  for (int j = 0; j < nc; ++j) b[nq + j] = g[j];
+  b << e.Q, e.gamma;
   const Eigen::VectorXd x = A.fullPivLu().solve(b);
   State s;
   s.t = t;
@@ -161,26 +175,13 @@ Eigen::VectorXd StepResidual(MechanicalSystem& sys, double t, const std::vector<
                              const Eigen::VectorXd& lam, bool equilibrium, double alpha,
                              double cq) {
   const int nq = sys.num_coordinates(), nc = sys.num_constraints();
-  std::vector<double> Q(nq), C(nc), M(sys.pattern(Matrix::kMass).nnz()),
-      Cq(sys.pattern(Matrix::kConstraintDq).nnz());
-  EvalInput in;
-  in.t = t;
-  in.q = q1.data();
-  in.v = v1.data();
-  EvalOutput out;
-  out.force = Q.data();
-  out.constraint = C.data();
-  out[Matrix::kMass] = M.data();
-  out[Matrix::kConstraintDq] = Cq.data();
-  EXPECT_EQ(sys.Evaluate(in, out), 0);
-  const Eigen::MatrixXd Md = Dense(sys.pattern(Matrix::kMass), M);
-  const Eigen::MatrixXd Cd = Dense(sys.pattern(Matrix::kConstraintDq), Cq);
-  const Eigen::Map<const Eigen::VectorXd> av(a1.data(), nq), Qv(Q.data(), nq);
-  const Eigen::VectorXd F = Cd.transpose() * lam - Qv;
+  const DenseEvaluation e = EvaluateDense(sys, t, q1, v1);
+  const Eigen::Map<const Eigen::VectorXd> av(a1.data(), nq);
+  const Eigen::VectorXd F = e.Cq.transpose() * lam - e.Q;
   Eigen::VectorXd r(nq + nc);
-  r.head(nq) = equilibrium ? Eigen::VectorXd((Md * av + F) / (1 + alpha))
-                           : Eigen::VectorXd(Md * av / (1 + alpha) + F);
-  for (int j = 0; j < nc; ++j) r[nq + j] = C[j] / cq;
+  r.head(nq) = equilibrium ? Eigen::VectorXd((e.M * av + F) / (1 + alpha))
+                           : Eigen::VectorXd(e.M * av / (1 + alpha) + F);
+  r.tail(nc) = e.C / cq;
   return r;
 }
 
