@@ -148,6 +148,33 @@ TEST(HhtRestore, HeavyTopLinearPredictorCarriesThePreviousStep) {
   RestoreCase(*top.sys, opt, top.x0, 0.3, at);
 }
 
+// The exact rotation blocks of the Newton matrix (HhtOptions::rotation_jacobian) need no
+// history of their own. Fixed-step in the negrut form with KLU the restored run is the
+// recorded one. Adaptive with the tree elimination's defaults it refreshes its Newton
+// matrix at the first step where the recorded run reused an older one, so the iterates
+// differ within the Newton threshold (1e-14 here), which the fast top carries to 1e-11 in
+// q and v by the end of the run: within 1e-9, as the checkpointed gradients need (they
+// accept 1e-6, sensitivities/hht_checkpoint.cc).
+TEST(HhtRestore, HeavyTopExactRotationBlocks) {
+  HeavyTop top;
+  dae::HhtOptions negrut = HeavyTop::Options(true, false);
+  negrut.form = dae::HhtOptions::Form::kNegrut;
+  negrut.rotation_jacobian = dae::HhtOptions::RotationJacobian::kExact;
+  RestoreCase(*top.sys, negrut, top.x0, 0.2, 37);
+
+  dae::HhtOptions opt = HeavyTop::Options(true, true);
+  opt.linear_solver = dae::HhtOptions::LinearSolver::kTree;  // auto: exact
+  const int at = 60;
+  const Recorded rec = RecordRun(*top.sys, opt, top.x0, 0.3, at);
+  ASSERT_GT(static_cast<int>(rec.states.size()), at + 20);
+  const StateDiff restored = Continue(*top.sys, opt, rec, at, true);
+  const StateDiff fresh = Continue(*top.sys, opt, rec, at, false);
+  std::printf("tree, exact blocks: restored: q, v %.2e  a %.2e  lambda %.2e; initialized "
+              "instead: q, v %.2e\n", restored.qv, restored.a, restored.lambda, fresh.qv);
+  EXPECT_LE(restored.qv, 1e-9);
+  EXPECT_GT(fresh.qv, 1e3 * restored.qv);  // the history matters
+}
+
 TEST(HhtRestore, RefusesSnapshotsOfAnotherKind) {
   HeavyTop top;
   dae::HhtOptions opt = HeavyTop::Options(true, false);
