@@ -185,6 +185,19 @@ Eigen::VectorXd StepResidual(MechanicalSystem& sys, double t, const std::vector<
   return r;
 }
 
+// The n x n Jacobian of f at 0 by central differences with step eps.
+template <class F>
+Eigen::MatrixXd CentralDifferences(const F& f, int n, double eps) {
+  Eigen::MatrixXd J(n, n);
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd xp = Eigen::VectorXd::Zero(n), xm = Eigen::VectorXd::Zero(n);
+    xp[k] = eps;
+    xm[k] = -eps;
+    J.col(k) = (f(xp) - f(xm)) / (2 * eps);
+  }
+  return J;
+}
+
 // HhtNewtonMatrix (the integrator's Newton matrix) is the derivative of the step's
 // residual with respect to (a_{n+1}, lambda_{n+1}) through Newmark's formulas, in both
 // forms: central differences of the residual written out here from the definitions.
@@ -227,14 +240,7 @@ TEST(HhtNewtonMatrix, IsTheDerivativeOfTheStepResidual) {
       };
       // The residual is nearly linear in (da, dl) (the state moves by h^2 da): a large
       // step keeps the rounding of C / (beta h^2) small.
-      Eigen::MatrixXd J_fd(n, n);
-      const double eps = 1e-3;
-      for (int k = 0; k < n; ++k) {
-        Eigen::VectorXd xp = Eigen::VectorXd::Zero(n), xm = Eigen::VectorXd::Zero(n);
-        xp[k] = eps;
-        xm[k] = -eps;
-        J_fd.col(k) = (residual(xp) - residual(xm)) / (2 * eps);
-      }
+      const Eigen::MatrixXd J_fd = CentralDifferences(residual, n, 1e-3);
       const double err = (J - J_fd).cwiseAbs().maxCoeff() / J_fd.cwiseAbs().maxCoeff();
       std::cout << "  relative error of the HHT Newton matrix: " << err << "\n";
       EXPECT_LT(err, 1e-8);
@@ -340,14 +346,7 @@ TEST(HhtNewtonMatrix, RotationBlocksAreTheDerivativeOfTheModifiedStepResidual) {
                                 exact.data(), nullptr, nullptr, rot),
                 0);
       ASSERT_EQ(newton.Assemble(t, h, q1.data(), v1.data(), a1.data(), lam.data(), first.data()), 0);
-      Eigen::MatrixXd J_fd(n, n);
-      const double eps = 1e-3;
-      for (int k = 0; k < n; ++k) {
-        Eigen::VectorXd xp = Eigen::VectorXd::Zero(n), xm = Eigen::VectorXd::Zero(n);
-        xp[k] = eps;
-        xm[k] = -eps;
-        J_fd.col(k) = (residual(xp) - residual(xm)) / (2 * eps);
-      }
+      const Eigen::MatrixXd J_fd = CentralDifferences(residual, n, 1e-3);
       const double scale = J_fd.cwiseAbs().maxCoeff();
       const double err = (Dense(newton.pattern(), exact) - J_fd).cwiseAbs().maxCoeff() / scale;
       const double err1 = (Dense(newton.pattern(), first) - J_fd).cwiseAbs().maxCoeff() / scale;
