@@ -324,25 +324,11 @@ namespace {
 // A number for messages: %.6g (std::to_string prints 1e-12 as 0.000000).
 std::string Num(double x) { return FormatG(x, 6); }
 
-// Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'.
-// Gx(e, x) = G(e) x (x: 4), Gt(e, y) = G(e)^T y (y: 3). Both bilinear.
+// Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'. Gx(e, x) = G(e) x (x: 4).
 inline void Gx(const double* e, const double* x, double* out) {
   out[0] = -e[1] * x[0] + e[0] * x[1] + e[3] * x[2] - e[2] * x[3];
   out[1] = -e[2] * x[0] - e[3] * x[1] + e[0] * x[2] + e[1] * x[3];
   out[2] = -e[3] * x[0] + e[2] * x[1] - e[1] * x[2] + e[0] * x[3];
-}
-inline void Gt(const double* e, const double* y, double* out) {
-  out[0] = -e[1] * y[0] - e[2] * y[1] - e[3] * y[2];
-  out[1] = e[0] * y[0] - e[3] * y[1] + e[2] * y[2];
-  out[2] = e[3] * y[0] + e[0] * y[1] - e[1] * y[2];
-  out[3] = -e[2] * y[0] + e[1] * y[1] + e[0] * y[2];
-}
-// out = p (x) r, Hamilton product, scalar first.
-inline void QuatMul(const double* p, const double* r, double* out) {
-  out[0] = p[0] * r[0] - p[1] * r[1] - p[2] * r[2] - p[3] * r[3];
-  out[1] = p[0] * r[1] + p[1] * r[0] + p[2] * r[3] - p[3] * r[2];
-  out[2] = p[0] * r[2] - p[1] * r[3] + p[2] * r[0] + p[3] * r[1];
-  out[3] = p[0] * r[3] + p[1] * r[2] - p[2] * r[1] + p[3] * r[0];
 }
 
 // Whether the Newton matrix may take the exact rotation blocks (HhtOptions::
@@ -836,57 +822,28 @@ class HhtIntegrator final : public Integrator {
       vn_[i] = v0[i] + h * ((1 - gamma_) * a0 + gamma_ * a1[i]);
     }
     if (!opt_.modified) return;
+    // Each group by the rotation update (dae/hht_rotation.h), with G(e_{n+1}) at the
+    // previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start.
+    using L = HhtRotationLayout;
+    const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
       const int g = groups[grp];
-      const double* e0 = &q0[g];
-      double* e1 = &qn_[g];
-      // G at the previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start.
-      const double* eg = &e_iter_[g];
-      double w0[3], dw0[3], dw1[3], th[3], w1[3];
-      Gx(e0, &v0[g], w0);
-      Gx(eg, &an_[g], dw1);
-      if (equilibrium_) {
-        double dwn[3];
-        Gx(e0, &state_.a[g], dwn);
-        for (int k = 0; k < 3; ++k) {
-          dw0[k] = 2 * dwn[k] + r * (wbar_[3 * grp + k] - 2 * dwn[k]);
-          dw1[k] = 2 * ((1 + alpha_) * dw1[k] - alpha_ * dwn[k]);
-        }
-      } else {
-        Gx(e0, &state_.a[g], dw0);
-        for (int k = 0; k < 3; ++k) {
-          dw0[k] *= 2;
-          dw1[k] *= 2;
-        }
-      }
-      for (int k = 0; k < 3; ++k) {
-        w0[k] *= 2;
-        wbar_new_[3 * grp + k] = dw1[k];
-        th[k] = h * w0[k] + h * h * ((0.5 - beta_) * dw0[k] + beta_ * dw1[k]);
-        w1[k] = w0[k] + h * ((1 - gamma_) * dw0[k] + gamma_ * dw1[k]);
-      }
-      const double ang = std::sqrt(th[0] * th[0] + th[1] * th[1] + th[2] * th[2]);
-      double r[4];
-      r[0] = std::cos(ang / 2);
-      const double sc = ang > 1e-8 ? std::sin(ang / 2) / ang : 0.5 - ang * ang / 48;
-      for (int k = 0; k < 3; ++k) r[k + 1] = sc * th[k];
-      double eu[4];
-      QuatMul(e0, r, eu);
-      double* ed = &vn_[g];
-      Gt(eu, w1, ed);
-      double s = 0;
+      double x[L::kInputs], y[L::kOutputs];
       for (int k = 0; k < 4; ++k) {
-        ed[k] *= 0.5;
-        s += eu[k] * an_[g + k] + ed[k] * ed[k];
+        x[L::kE0 + k] = q0[g + k];
+        x[L::kEd0 + k] = v0[g + k];
+        x[L::kA0 + k] = state_.a[g + k];
+        x[L::kA1 + k] = an_[g + k];
+        x[L::kEIter + k] = e_iter_[g + k];
       }
-      // The radial updates carry the factor mix_ of dq/da and dv/da, so that the Newton
-      // matrix is their first-order approximation in both forms.
-      const double rho = mix_ * beta_ * h * h * s;
+      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
+      HhtRotationMap(sc, h, r, x, y);
       for (int k = 0; k < 4; ++k) {
-        e1[k] = (1 + rho) * eu[k];
-        ed[k] += mix_ * gamma_ * h * s * eu[k];
+        qn_[g + k] = y[L::kE1 + k];
+        vn_[g + k] = y[L::kEd1 + k];
       }
+      for (int k = 0; k < 3; ++k) wbar_new_[3 * grp + k] = y[L::kWbar1 + k];
     }
   }
 
@@ -938,7 +895,7 @@ class HhtIntegrator final : public Integrator {
   int NewtonMatrix(double t1, double h, std::string* error) {
     evaluated_ = false;
     const double* rotation = nullptr;
-    if (exact_rotation_) {
+    if (ExactRotation()) {
       RotationBlocks(h);
       rotation = rotation_.data();
     }
@@ -1135,7 +1092,7 @@ class HhtIntegrator final : public Integrator {
           // 3.1e-8, then 1e-12), which the one-step rate reads as divergence. The refresh
           // test below keeps the one-step rate (with the two-iteration one an old matrix
           // is kept too long: KLU's rules took 40 % more iterations).
-          const double rate = exact_rotation_ && it > 1 ? std::sqrt(norm / prev_prev_norm)
+          const double rate = ExactRotation() && it > 1 ? std::sqrt(norm / prev_prev_norm)
                                                         : step_rate;
           // Contracting iteration: the distance to the solution is about
           // rate / (1 - rate) * norm (Hairer & Wanner, Solving ODEs II, IV.8, the
@@ -1218,10 +1175,10 @@ class HhtIntegrator final : public Integrator {
     linear_predictor_ = opt_.predictor == HhtOptions::Predictor::kAuto
                             ? tree_ != nullptr
                             : opt_.predictor == HhtOptions::Predictor::kLinear;
-    exact_rotation_ = newton_->has_rotation_blocks() &&
-                      (opt_.rotation_jacobian == HhtOptions::RotationJacobian::kExact ||
-                       (opt_.rotation_jacobian == HhtOptions::RotationJacobian::kAuto && tree_));
   }
+
+  // HhtOptions::rotation_jacobian resolved: the exact blocks are used.
+  bool ExactRotation() const { return newton_->has_rotation_blocks(); }
 
   // The summary's account of the linear solver and the options resolved for it.
   void SolverSummary() {
@@ -1230,7 +1187,7 @@ class HhtIntegrator final : public Integrator {
     summary_.predictor = HhtPredictorName(linear_predictor_ ? HhtOptions::Predictor::kLinear
                                                             : HhtOptions::Predictor::kConstant);
     summary_.rotation_jacobian =
-        HhtRotationJacobianName(exact_rotation_ ? HhtOptions::RotationJacobian::kExact
+        HhtRotationJacobianName(ExactRotation() ? HhtOptions::RotationJacobian::kExact
                                                 : HhtOptions::RotationJacobian::kFirstOrder);
   }
 
@@ -1301,7 +1258,10 @@ class HhtIntegrator final : public Integrator {
   double alpha_ = 0, beta_ = 0, gamma_ = 0;
   bool equilibrium_ = true;  // opt_.form == kEquilibrium
   double mix_ = 1;           // 1 + alpha (equilibrium form) or 1
-  std::unique_ptr<HhtNewtonMatrix> newton_;  // replaced by DropRotationRoom only
+  // Its room for rotation blocks is HhtOptions::rotation_jacobian resolved: made where
+  // they may be used (WantsRotationBlocks) and dropped where KLU's auto does not use them
+  // (DropRotationRoom), so ExactRotation() needs no flag of its own.
+  std::unique_ptr<HhtNewtonMatrix> newton_;
   std::vector<double> mat_[kNumMatrices];  // M and C_q of the residual
   std::vector<double> jac_;
   std::unique_ptr<KluSolver> klu_;  // null until needed when tree_ is set
@@ -1317,7 +1277,6 @@ class HhtIntegrator final : public Integrator {
   // a_{n-1} and lambda_{n-1}, the linear predictor's (valid when h_prev_ > 0).
   std::vector<double> a_prev_, lam_prev_;
   bool linear_predictor_ = false;  // HhtOptions::predictor resolved
-  bool exact_rotation_ = false;    // HhtOptions::rotation_jacobian resolved
   std::vector<double> rotation_;   // RotationBlocks: 32 per group
   State state_;
   Summary summary_;
