@@ -134,9 +134,9 @@ void HhtRotationMap(const HhtRotationScheme& sc, double h, double r, const T* x,
 // de/da = (I - dy_e/de_iter)^{-1} dy_e/da. It replaces the first-order mix beta h^2 I and
 // mix gamma h I of the Newton matrix (HhtOptions::rotation_jacobian). Written out by the
 // chain rule (a_{n+1} and e_iter enter the update through omegabar'_{n+1} = 2 mix
-// G(e_iter) a_{n+1} + ..., and a_{n+1} also through s), about 0.1 us a group; the tests
-// check it against forward-mode AutoDiff of HhtRotationMap and the Newton matrix against
-// finite differences.
+// G(e_iter) a_{n+1} + ..., and a_{n+1} also through s), about 0.3 us a group
+// (bench/bench_rotation.cc); the tests check it against forward-mode AutoDiff of
+// HhtRotationMap and the Newton matrix against finite differences.
 void HhtRotationDerivative(const HhtRotationScheme& sc, double h, double r, const double* x,
                            double* de_da, double* ded_da);
 
