@@ -259,6 +259,11 @@ class KeptConstraints final : public MechanicalSystem {
     return base_.quaternion_offsets();
   }
   const char* last_error() const override { return base_.last_error(); }
+  // The base system's C_q^T w with the dropped equations' weights zero: their terms add
+  // zeros, so the sums equal those over the kept rows to the last bit.
+  bool provides_constraint_transpose_w() const override {
+    return base_.provides_constraint_transpose_w();
+  }
   int num_parameters() const override { return base_.num_parameters(); }
   const CscPattern& parameter_pattern(ParameterMatrix m) const override {
     for (ParameterMatrix r : kRowsAreConstraints)

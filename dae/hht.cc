@@ -247,16 +247,24 @@ HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& opt
     const CscPattern& result = assembler_.pattern();
     for (const auto& [m, row0] : rotated) {
       const CscPattern& p = system_.pattern(m);
-      auto& list = rot_entries_[static_cast<int>(m)];
-      for (int c = 0; c < nq; ++c) {
-        const int grp = group_of[c];
-        if (grp < 0) continue;
-        for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k) {
-          RotationEntry e{k, grp, c - groups[grp], {}};
-          for (int j = 0; j < 4; ++j)
-            e.pos[j] = result.find(row0 + p.row_index[k], groups[grp] + j);
-          list.push_back(e);
-        }
+      auto& list = rot_rows_[static_cast<int>(m)];
+      std::vector<int> slot(p.rows, -1);  // the row's entry in list for this group
+      for (size_t grp = 0; grp < groups.size(); ++grp) {
+        const size_t first = list.size();
+        for (int c = 0; c < 4; ++c)
+          for (int k = p.col_start[groups[grp] + c]; k < p.col_start[groups[grp] + c + 1]; ++k) {
+            const int row = p.row_index[k];
+            if (slot[row] < 0) {
+              slot[row] = static_cast<int>(list.size());
+              RotationRow rr{static_cast<int>(grp), {-1, -1, -1, -1}, {}};
+              for (int j = 0; j < 4; ++j) rr.pos[j] = result.find(row0 + row, groups[grp] + j);
+              list.push_back(rr);
+            }
+            list[slot[row]].k[c] = k;
+          }
+        for (size_t i = first; i < list.size(); ++i)
+          for (int c = 0; c < 4; ++c)
+            if (list[i].k[c] >= 0) slot[p.row_index[list[i].k[c]]] = -1;
       }
     }
   }
@@ -307,14 +315,21 @@ void HhtNewtonMatrix::AssembleFrom(double h, const std::vector<double>* mats, do
   if (!has_rotation_blocks())
     throw std::logic_error("HhtNewtonMatrix: rotation blocks given, but its pattern has no room for them");
   // Column j of a group: the sum over the group's columns c of B[:, c] (R - I)[c][j], B
-  // with its scale, R = dq/da / (mix beta h^2) (dv/da / (mix gamma h) for Q_v).
+  // with its scale, R = dq/da / (mix beta h^2) (dv/da / (mix gamma h) for Q_v); row by
+  // row, each of the row's four results loaded and stored once (c in increasing order).
   for (const Term& t : terms) {
     const double* b = M(t.m);
     const int off = t.m == Matrix::kForceDv ? 16 : 0;
-    for (const RotationEntry& e : rot_entries_[static_cast<int>(t.m)]) {
-      const double* r = rotation + 32 * e.group + off + 4 * e.col;
-      const double x = t.scale * b[e.k];
-      for (int j = 0; j < 4; ++j) values[e.pos[j]] += x * r[j];
+    for (const RotationRow& rr : rot_rows_[static_cast<int>(t.m)]) {
+      const double* r = rotation + 32 * rr.group + off;
+      double x[4];
+      for (int c = 0; c < 4; ++c) x[c] = rr.k[c] >= 0 ? t.scale * b[rr.k[c]] : 0.0;
+      for (int j = 0; j < 4; ++j) {
+        double v = values[rr.pos[j]];
+        for (int c = 0; c < 4; ++c)
+          if (rr.k[c] >= 0) v += x[c] * r[4 * c + j];
+        values[rr.pos[j]] = v;
+      }
     }
   }
 }
@@ -366,6 +381,8 @@ class HhtIntegrator final : public Integrator {
     // and the Newton matrix with its factorisation.
     for (Matrix m : {Matrix::kMass, Matrix::kConstraintDq})
       mat_[static_cast<int>(m)].assign(sys_.pattern(m).nnz(), 0.0);
+    // C_q^T lambda of F without C_q where the system gives it (the same numbers).
+    cqtw_product_ = sys_.provides_constraint_transpose_w();
     jac_.assign(newton_->pattern().nnz(), 0.0);
     if (opt_.linear_solver == HhtOptions::LinearSolver::kTree)
       tree_ = BlockTreeLu::ForMechanicalSystem(newton_->pattern(), sys_.pattern(Matrix::kMass),
@@ -378,7 +395,8 @@ class HhtIntegrator final : public Integrator {
     ResolveSolverDefaults();
 
     const int n = nq_ + nc_;
-    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &e_iter_, &abar_, &abar_new_, &a_prev_})
+    for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &cqtw_, &e_iter_, &abar_, &abar_new_,
+                    &a_prev_})
       v->assign(nq_, 0.0);
     const size_t ng = sys_.quaternion_offsets().size();
     wbar_.assign(3 * ng, 0.0);
@@ -783,7 +801,7 @@ class HhtIntegrator final : public Integrator {
                                 state_.lambda.data(), g) == 0;
   }
 
-  // f = C_q^T lambda - Q(q, v, t). Uses the C_q buffer.
+  // f = C_q^T lambda - Q(q, v, t). Uses the C_q buffer (or cqtw_).
   int EvaluateF(double t, const double* q, const double* v, const double* lam, double* f) {
     EvalInput in;
     in.t = t;
@@ -791,14 +809,32 @@ class HhtIntegrator final : public Integrator {
     in.v = v;
     EvalOutput out;
     out.force = force_.data();
-    out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+    const bool product = RequestConstraintForce(lam, in, out);
     const int rc = sys_.Evaluate(in, out);
     ++summary_.residual_evaluations;
     if (rc != 0) return rc;
     for (int i = 0; i < nq_; ++i) f[i] = -force_[i];
-    MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq),
-                         mat_[static_cast<int>(Matrix::kConstraintDq)].data(), 1.0, lam, f);
+    AddConstraintForce(product, mat_[static_cast<int>(Matrix::kConstraintDq)].data(), lam, f);
     return 0;
+  }
+
+  // C_q^T lambda of F: asked of the system as a product where it gives one (cqtw_product_;
+  // returns true), else as C_q. AddConstraintForce adds it to f: from cqtw_ (product) or
+  // from C_q's values cq, the same sums to the last bit.
+  bool RequestConstraintForce(const double* lam, EvalInput& in, EvalOutput& out) {
+    if (cqtw_product_) {
+      in.w = lam;
+      out.constraint_transpose_w = cqtw_.data();
+    } else {
+      out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+    }
+    return cqtw_product_;
+  }
+  void AddConstraintForce(bool product, const double* cq, const double* lam, double* f) const {
+    if (product)
+      for (int i = 0; i < nq_; ++i) f[i] += cqtw_[i];
+    else
+      MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq), cq, 1.0, lam, f);
   }
 
   // q_{n+1}, v_{n+1} from a_{n+1} (Newmark, and the modified map for quaternions).
@@ -854,6 +890,7 @@ class HhtIntegrator final : public Integrator {
   int Residual(double t1, double h) {
     const double* mass = mat_[static_cast<int>(Matrix::kMass)].data();
     const double* cq = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+    bool product = false;  // C_q^T lambda from cqtw_
     ++summary_.residual_evaluations;
     if (evaluated_) {
       evaluated_ = false;
@@ -868,13 +905,13 @@ class HhtIntegrator final : public Integrator {
       out.force = force_.data();
       out.constraint = con_.data();
       out[Matrix::kMass] = mat_[static_cast<int>(Matrix::kMass)].data();
-      out[Matrix::kConstraintDq] = mat_[static_cast<int>(Matrix::kConstraintDq)].data();
+      product = RequestConstraintForce(lamn_.data(), in, out);
       const int rc = sys_.Evaluate(in, out);
       if (rc != 0) return rc;
     }
     const double s = 1 / (1 + alpha_);
     for (int i = 0; i < nq_; ++i) f_[i] = -force_[i];
-    MultiplyTransposeAdd(sys_.pattern(Matrix::kConstraintDq), cq, 1.0, lamn_.data(), f_.data());
+    AddConstraintForce(product, cq, lamn_.data(), f_.data());
     if (equilibrium_) {
       for (int i = 0; i < nq_; ++i) res_[i] = s * f_[i];
     } else {
@@ -1271,6 +1308,9 @@ class HhtIntegrator final : public Integrator {
   TreePivotRule tree_rule_;
   // Work vectors (sized in the constructor; no allocation while stepping).
   std::vector<double> qn_, vn_, an_, lamn_, fn_, f_, force_, con_, res_, x_;
+  // C_q^T lambda from the system (EvalOutput::constraint_transpose_w) where it gives it.
+  std::vector<double> cqtw_;
+  bool cqtw_product_ = false;
   std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)
   // Equilibrium form: abar_n and abar_{n+1}; per quaternion group omegabar'_n, _{n+1}.
   std::vector<double> abar_, abar_new_, wbar_, wbar_new_;

@@ -257,13 +257,13 @@ class HhtNewtonMatrix {
   BlockAssembler assembler_;
   int b_mass_ = 0, b_kma_ = 0, b_kc_ = 0, b_qq_ = 0, b_qv_ = 0, b_cqt_ = 0, b_cq_ = 0;
   std::vector<double> mat_[kNumMatrices];  // the system's matrices (all but kConstraintVelDq)
-  // Rotation blocks: per system matrix, its entries in a group's column (entry, group,
-  // column within the group, the result's positions of the entry's row in the group's
-  // four columns).
-  struct RotationEntry {
-    int k, group, col, pos[4];
+  // Rotation blocks: per system matrix, each row it has in a group's four columns (the
+  // group, the row's entries in those columns, -1 where it has none, and the result's
+  // positions of that row in the four columns).
+  struct RotationRow {
+    int group, k[4], pos[4];
   };
-  std::vector<RotationEntry> rot_entries_[kNumMatrices];
+  std::vector<RotationRow> rot_rows_[kNumMatrices];
   bool rotation_blocks_ = false;
 };
 

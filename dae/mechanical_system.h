@@ -45,7 +45,7 @@ struct EvalInput {
   const double* q = nullptr;  // nq
   const double* v = nullptr;  // nq
   const double* a = nullptr;  // nq, for kMassTimesAccDq
-  const double* w = nullptr;  // nc, weights for kConstraintTDq
+  const double* w = nullptr;  // nc, weights for kConstraintTDq and constraint_transpose_w
 };
 
 // What to evaluate: every non-null pointer is filled (vectors by size, matrices by
@@ -63,6 +63,12 @@ struct EvalOutput {
                                      // velocity-quadratic inertia terms (gyroscopic,
                                      // centripetal); Q - Q_v are the applied forces
   double* constraint_dtt = nullptr;  // C_tt(q, t), nc: the second partial time derivative
+  // C_q(q)^T w (nq, w = EvalInput::w) without the matrix C_q: for the integrators'
+  // residuals, requested only from a system whose provides_constraint_transpose_w() says
+  // it fills it; then it equals MultiplyTransposeAdd(pattern(kConstraintDq), C_q, 1.0, w,
+  // zeros) to the last bit (each column's products summed in the same order), so that a
+  // run gives the same numbers with or without it.
+  double* constraint_transpose_w = nullptr;
   double* matrix[kNumMatrices] = {nullptr, nullptr, nullptr, nullptr,
                                   nullptr, nullptr, nullptr};
   // Parameter derivatives (only for a system with num_parameters() > 0), each by the
@@ -89,6 +95,9 @@ class MechanicalSystem {
   virtual const std::vector<int>& quaternion_offsets() const { return no_quaternions_; }
 
   virtual int Evaluate(const EvalInput& in, EvalOutput& out) = 0;
+
+  // Whether Evaluate fills EvalOutput::constraint_transpose_w (see there). No by default.
+  virtual bool provides_constraint_transpose_w() const { return false; }
 
   // Parameters of the sensitivity analysis: their number (0: the system offers no
   // parameter derivatives, and Evaluate ignores parameter_matrix), names for messages,

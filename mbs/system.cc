@@ -214,8 +214,17 @@ class Sink {
     pattern_ = dae::CscPattern::FromEntries(rows, cols, entries_);
     position_.clear();
     position_.reserve(std::count(written_.begin(), written_.end(), true));
-    for (size_t k = 0; k < entries_.size(); ++k)
-      if (written_[k]) position_.push_back(pattern_.find(entries_[k].first, entries_[k].second));
+    std::vector<int> last_row(cols, -1);
+    std::vector<char> seen(pattern_.nnz(), 0);
+    adds_once_by_row_ = true;
+    for (size_t k = 0; k < entries_.size(); ++k) {
+      if (!written_[k]) continue;
+      const auto [r, c] = entries_[k];
+      position_.push_back(pattern_.find(r, c));
+      if (seen[position_.back()] || r <= last_row[c]) adds_once_by_row_ = false;
+      seen[position_.back()] = 1;
+      last_row[c] = r;
+    }
     entries_.clear();
     entries_.shrink_to_fit();
     written_.clear();
@@ -245,6 +254,10 @@ class Sink {
     values_ = nullptr;
   }
   const dae::CscPattern& pattern() const { return pattern_; }
+  // Whether the recorded adds write each entry once and, column by column, in increasing
+  // rows: then a product with the matrix summed in the order of the adds (as
+  // EvalOutput::constraint_transpose_w) equals a product by the pattern's columns.
+  bool adds_once_by_row() const { return adds_once_by_row_; }
 
  private:
   // Out of line: keeps Add small enough to be inlined in the evaluation loops.
@@ -259,6 +272,7 @@ class Sink {
   dae::CscPattern pattern_;
   double* values_ = nullptr;
   int cursor_ = 0;
+  bool adds_once_by_row_ = false;
 };
 
 // Which entries of a local 14x14 (or 14-vector) block are structurally present.
@@ -1124,6 +1138,12 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   Sink& sCtw = sink[static_cast<int>(Matrix::kConstraintTDq)];
   Sink& sCv = sink[static_cast<int>(Matrix::kConstraintVelDq)];
   for (int m = 0; m < dae::kNumMatrices; ++m) sink[m].Begin(out.matrix[m]);
+  // C_q^T w without C_q (EvalOutput::constraint_transpose_w): each C_q entry's product
+  // with w added where the entry is added to the sink (adds_once_by_row: in the order of
+  // a product by the pattern's columns).
+  double* const cqtw = out.constraint_transpose_w;
+  if (cqtw) std::fill(cqtw, cqtw + nq, 0.0);
+  const bool cq = sCq.active() || cqtw;
   if (out.force) std::fill(out.force, out.force + nq, 0.0);
   if (out.constraint) std::fill(out.constraint, out.constraint + nc, 0.0);
   if (out.constraint_dt) std::fill(out.constraint_dt, out.constraint_dt + nc, 0.0);
@@ -1255,13 +1275,16 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
       const JointField& U = lock < 3 ? axis[1][lock] : axis[1][lock == 3 ? 1 : 0];
       const JointField& W = lock < 3 ? d : axis[0][lock == 5 ? 1 : 2];
       if (out.constraint) out.constraint[row] = U.x.dot(W.x);
-      if (sCq.active()) {
+      if (cq) {
         for (int s = 0; s < 2; ++s) {
           if (!bs[s]) continue;
           const int o = ji.offset[s];
           if (U.sig[s] != 0 || W.sig[s] != 0) {
             const Vec3 gr = U.sig[s] * W.x + W.sig[s] * U.x;
-            for (int i = 0; i < 3; ++i) sCq.Add(row, o + i, gr[i]);
+            if (sCq.active())
+              for (int i = 0; i < 3; ++i) sCq.Add(row, o + i, gr[i]);
+            if (cqtw)
+              for (int i = 0; i < 3; ++i) cqtw[o + i] += gr[i] * w[row];
           } else {
             for (int i = 0; i < 3; ++i) sCq.Declare(row, o + i);
           }
@@ -1269,7 +1292,10 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
             Quat ge = Quat::Zero();
             if (U.rot[s]) ge += BtW(bs[s]->e, U.ub[s], W.x);
             if (W.rot[s]) ge += BtW(bs[s]->e, W.ub[s], U.x);
-            for (int i = 0; i < 4; ++i) sCq.Add(row, o + 3 + i, ge[i]);
+            if (sCq.active())
+              for (int i = 0; i < 4; ++i) sCq.Add(row, o + 3 + i, ge[i]);
+            if (cqtw)
+              for (int i = 0; i < 4; ++i) cqtw[o + 3 + i] += ge[i] * w[row];
           } else {
             for (int i = 0; i < 4; ++i) sCq.Declare(row, o + 3 + i);
           }
@@ -1367,6 +1393,10 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
         if (sCq.active())
           for (int r = 0; r < 14; ++r)
             if (mj.offset[r / 7] >= 0) sCq.Add(row, mj.offset[r / 7] + r % 7, mc.coef[u] * mj.gradient[r]);
+        if (cqtw)
+          for (int r = 0; r < 14; ++r)
+            if (mj.offset[r / 7] >= 0)
+              cqtw[mj.offset[r / 7] + r % 7] += (mc.coef[u] * mj.gradient[r]) * w[row];
         if (!need_h) continue;
         const Vec14 vl = GatherLocal(mj.offset, v);
         const Vec14 hv = mj.hessian * vl;
@@ -1408,6 +1438,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     if (out.acc_rhs) out.acc_rhs[row] = -2 * ed.squaredNorm();
     for (int k = 0; k < 4; ++k) {
       if (sCq.active()) sCq.Add(row, o + k, 2 * e[k]);
+      if (cqtw) cqtw[o + k] += (2 * e[k]) * w[row];
       if (sCv.active()) sCv.Add(row, o + k, 2 * ed[k]);
       if (sCtw.active()) sCtw.Add(o + k, o + k, 2 * w[row]);
     }
@@ -2098,6 +2129,9 @@ const std::vector<int>& MultibodySystem::quaternion_offsets() const {
 }
 int MultibodySystem::Evaluate(const dae::EvalInput& in, dae::EvalOutput& out) {
   return impl_->Run(in, out);
+}
+bool MultibodySystem::provides_constraint_transpose_w() const {
+  return impl_->sink[static_cast<int>(dae::Matrix::kConstraintDq)].adds_once_by_row();
 }
 const char* MultibodySystem::last_error() const { return impl_->error.c_str(); }
 const Model& MultibodySystem::model() const { return impl_->model; }

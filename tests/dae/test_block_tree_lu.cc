@@ -474,6 +474,53 @@ TEST(BlockTreeLu, HhtExactRotationJacobianSavesIterations) {
   EXPECT_EQ(KluLikeTheTree(c, klu_exact, *exact.tree).rotation_jacobian, "exact");
 }
 
+// The system without EvalOutput::constraint_transpose_w: everything else forwarded.
+class WithoutConstraintProduct final : public MechanicalSystem {
+ public:
+  explicit WithoutConstraintProduct(MechanicalSystem& base) : base_(base) {}
+  int num_coordinates() const override { return base_.num_coordinates(); }
+  int num_constraints() const override { return base_.num_constraints(); }
+  const CscPattern& pattern(Matrix m) const override { return base_.pattern(m); }
+  const std::vector<int>& quaternion_offsets() const override { return base_.quaternion_offsets(); }
+  int Evaluate(const EvalInput& in, EvalOutput& out) override {
+    EXPECT_EQ(out.constraint_transpose_w, nullptr);
+    return base_.Evaluate(in, out);
+  }
+  const char* last_error() const override { return base_.last_error(); }
+
+ private:
+  MechanicalSystem& base_;
+};
+
+// HHT's residual takes C_q^T lambda from the system's product (EvalOutput::
+// constraint_transpose_w) where the system gives it, and the runs are the same to the
+// last bit as with C_q and its pattern's product: KLU and the tree, the equilibrium and
+// the negrut form (whose F_{n+1} at each converged step is one more evaluation), on the
+// 30-rod chain.
+TEST(BlockTreeLu, HhtConstraintProductGivesTheSameRuns) {
+  Consistent c(ChainYaml(30, false));
+  ASSERT_TRUE(c.kept->provides_constraint_transpose_w());
+  WithoutConstraintProduct plain(*c.kept);
+  for (auto solver : {HhtOptions::LinearSolver::kKlu, HhtOptions::LinearSolver::kTree})
+    for (auto form : {HhtOptions::Form::kEquilibrium, HhtOptions::Form::kNegrut}) {
+      HhtOptions opt;
+      opt.linear_solver = solver;
+      opt.form = form;
+      auto with = MakeHhtIntegrator(*c.kept, opt), without = MakeHhtIntegrator(plain, opt);
+      with->Initialize(c.x);
+      without->Initialize(c.x);
+      ASSERT_TRUE(with->AdvanceTo(0.1)) << with->summary().message;
+      ASSERT_TRUE(without->AdvanceTo(0.1)) << without->summary().message;
+      const char* name = solver == HhtOptions::LinearSolver::kKlu ? "klu" : "tree";
+      EXPECT_EQ(with->summary().newton_iterations, without->summary().newton_iterations) << name;
+      EXPECT_EQ(with->summary().residual_evaluations, without->summary().residual_evaluations);
+      EXPECT_EQ(with->state().q, without->state().q) << name;
+      EXPECT_EQ(with->state().v, without->state().v) << name;
+      EXPECT_EQ(with->state().a, without->state().a) << name;
+      EXPECT_EQ(with->state().lambda, without->state().lambda) << name;
+    }
+}
+
 // A loop of bodies: KLU, and the reason; a loop closed through the ground (the four-bar of
 // tests/app/models, which the forest does not see): KLU after the first factorisation.
 TEST(BlockTreeLu, HhtOnALoopUsesKluAndSaysWhy) {

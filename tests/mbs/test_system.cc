@@ -328,6 +328,79 @@ TEST(MultibodySystem, KeptViewPassesTheOptionalOutputs) {
   EXPECT_GT(largest, 1e-3);  // a motion joint with a time term is among the kept rows
 }
 
+// EvalOutput::constraint_transpose_w: C_q^T w without C_q, equal to the last bit to the
+// product by C_q's pattern (what the HHT residual computed before, so its runs keep their
+// numbers) where the system says it gives it, and to a dense product to round-off. Motion
+// and gear joints put first make rows that the evaluation reaches after later joints'
+// rows: then the system must say no.
+TEST(MultibodySystem, ConstraintTransposeProductIsThePatternProduct) {
+  int provided = 0, refused = 0;
+  for (unsigned seed = 0; seed < 24; ++seed) {
+    std::mt19937 rng(300 + seed);
+    RandomModelOptions opt;
+    opt.motion_gear = seed % 3 != 0;
+    opt.expression_forces = seed % 2 == 0;
+    Model model = RandomModel(rng, opt);
+    const bool motion_first = opt.motion_gear && seed % 3 == 2;
+    if (motion_first) {  // the motion and gear joints (added last) to the front
+      auto first = std::stable_partition(model.joints.begin(), model.joints.end(),
+                                         [](const Joint& j) {
+                                           return j.type == JointType::kMotion ||
+                                                  j.type == JointType::kGear;
+                                         });
+      ASSERT_NE(first, model.joints.begin());
+    }
+    MultibodySystem sys(model);
+    const int nq = sys.num_coordinates(), nc = sys.num_constraints();
+    if (!sys.provides_constraint_transpose_w()) {
+      ++refused;
+      continue;
+    }
+    EXPECT_FALSE(motion_first) << "seed " << seed;
+    ++provided;
+    const RandomState s = MakeRandomState(rng, model, nc);
+    const Outputs o = EvaluateAll(sys, s.q.data(), s.v.data(), s.a.data(), s.w.data(), 0.4);
+    std::vector<double> product(nq, 777.0), reference(nq, 0.0);
+    dae::EvalInput in;
+    in.t = 0.4;
+    in.q = s.q.data();
+    in.v = s.v.data();
+    in.w = s.w.data();
+    dae::EvalOutput out;
+    out.constraint_transpose_w = product.data();
+    ASSERT_EQ(sys.Evaluate(in, out), 0);
+    dae::MultiplyTransposeAdd(sys.pattern(Matrix::kConstraintDq),
+                              o.matrix[static_cast<int>(Matrix::kConstraintDq)].data(), 1.0,
+                              s.w.data(), reference.data());
+    for (int i = 0; i < nq; ++i)
+      EXPECT_EQ(product[i], reference[i]) << "seed " << seed << ", " << sys.coordinate_names()[i];
+    const VectorXd dense = DenseOf(sys, o, Matrix::kConstraintDq).transpose() *
+                           Eigen::Map<const VectorXd>(s.w.data(), nc);
+    EXPECT_LT(RelativeError(Eigen::Map<const VectorXd>(product.data(), nq), dense), 1e-13);
+    // The view without every other equation: its product over the kept rows, again to
+    // the last bit (the dropped rows' weights are zero).
+    std::vector<int> kept;
+    for (int r = 0; r < nc; r += 2) kept.push_back(r);
+    auto view = dae::KeepConstraints(sys, kept);
+    ASSERT_TRUE(view->provides_constraint_transpose_w());
+    std::vector<double> wk(kept.size()), cqk(view->pattern(Matrix::kConstraintDq).nnz());
+    for (size_t k = 0; k < kept.size(); ++k) wk[k] = s.w[kept[k]];
+    std::vector<double> vproduct(nq, 777.0), vreference(nq, 0.0);
+    in.w = wk.data();
+    out.constraint_transpose_w = vproduct.data();
+    ASSERT_EQ(view->Evaluate(in, out), 0);
+    dae::EvalOutput mout;
+    mout[Matrix::kConstraintDq] = cqk.data();
+    ASSERT_EQ(view->Evaluate(in, mout), 0);
+    dae::MultiplyTransposeAdd(view->pattern(Matrix::kConstraintDq), cqk.data(), 1.0, wk.data(),
+                              vreference.data());
+    for (int i = 0; i < nq; ++i) EXPECT_EQ(vproduct[i], vreference[i]) << "view, seed " << seed;
+  }
+  std::cout << "C_q^T w provided by " << provided << " models, refused by " << refused << "\n";
+  EXPECT_GE(provided, 8);  // 11 of 24 when written
+  EXPECT_GE(refused, 8);   // every motion-first model (8), and gears on one body's measures
+}
+
 TEST(MultibodySystem, EvaluateIsRepeatable) {
   std::mt19937 rng(11);
   const Model model = RandomModel(rng);
