@@ -339,13 +339,6 @@ namespace {
 // A number for messages: %.6g (std::to_string prints 1e-12 as 0.000000).
 std::string Num(double x) { return FormatG(x, 6); }
 
-// Nikravesh's body matrix G(e) (3x4): omega_body = 2 G(e) e'. Gx(e, x) = G(e) x (x: 4).
-inline void Gx(const double* e, const double* x, double* out) {
-  out[0] = -e[1] * x[0] + e[0] * x[1] + e[3] * x[2] - e[2] * x[3];
-  out[1] = -e[2] * x[0] - e[3] * x[1] + e[0] * x[2] + e[1] * x[3];
-  out[2] = -e[3] * x[0] + e[2] * x[1] - e[1] * x[2] + e[0] * x[3];
-}
-
 // Whether the Newton matrix may take the exact rotation blocks (HhtOptions::
 // rotation_jacobian): room for them in its pattern.
 bool WantsRotationBlocks(const HhtOptions& o) {
@@ -396,12 +389,13 @@ class HhtIntegrator final : public Integrator {
 
     const int n = nq_ + nc_;
     for (auto* v : {&qn_, &vn_, &an_, &fn_, &f_, &force_, &cqtw_, &e_iter_, &abar_, &abar_new_,
-                    &a_prev_})
+                    &a_prev_, &start_q_, &start_qa_, &start_va_, &start_aa_, &norm_terms_})
       v->assign(nq_, 0.0);
     const size_t ng = sys_.quaternion_offsets().size();
     wbar_.assign(3 * ng, 0.0);
     wbar_new_.assign(3 * ng, 0.0);
     rotation_.assign(32 * ng, 0.0);
+    rotation_start_.assign(ng, HhtRotationStart{});
     for (auto* v : {&lamn_, &con_, &lam_prev_}) v->assign(nc_, 0.0);
     res_.assign(n, 0.0);
     x_.assign(n, 0.0);
@@ -438,7 +432,7 @@ class HhtIntegrator final : public Integrator {
       const std::vector<int>& groups = sys_.quaternion_offsets();
       for (size_t k = 0; k < groups.size(); ++k) {
         const int g = groups[k];
-        Gx(&state_.q[g], &state_.a[g], &wbar_[3 * k]);
+        HhtRotationG(&state_.q[g], &state_.a[g], &wbar_[3 * k]);
         for (int i = 0; i < 3; ++i) wbar_[3 * k + i] *= 2;
       }
     }
@@ -698,7 +692,7 @@ class HhtIntegrator final : public Integrator {
     for (size_t k = 0; k < groups.size(); ++k) {
       const int g = groups[k];
       double wp[3];
-      Gx(&qp[g], &ap[g], wp);
+      HhtRotationG(&qp[g], &ap[g], wp);
       for (int i = 0; i < 3; ++i) {
         double& w = wbar_[3 * k + i];  // 2 G(e_0) a_0
         w += alpha_ * (2 * wp[i] - w);
@@ -842,39 +836,27 @@ class HhtIntegrator final : public Integrator {
   // receive abar_{n+1} and the groups' omegabar'_{n+1}.
   void Kinematics(double h) {
     evaluated_ = false;  // qn_, vn_ change
+    assert(start_h_ == h);
     const std::vector<double>& q0 = state_.q;
     const std::vector<double>& v0 = state_.v;
     for (int i = 0; i < nq_; ++i)
-      abar_new_[i] = equilibrium_ ? (1 + alpha_) * an_[i] - alpha_ * state_.a[i] : an_[i];
+      abar_new_[i] = equilibrium_ ? (1 + alpha_) * an_[i] - start_aa_[i] : an_[i];
     const std::vector<double>& a1 = abar_new_;
-    // abar_n - a_n = -alpha (a_n - a_{n-1}) is proportional to the step that made it; a
-    // step of another size needs it scaled by h / h_prev, or every change of the step
-    // (to land on an output time, or by the step-size control) costs an O(h^2) local
-    // error and the method drops to first order.
-    const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
     for (int i = 0; i < nq_; ++i) {
-      const double a0 = equilibrium_ ? state_.a[i] + r * (abar_[i] - state_.a[i]) : state_.a[i];
-      qn_[i] = q0[i] + h * v0[i] + h * h * ((0.5 - beta_) * a0 + beta_ * a1[i]);
-      vn_[i] = v0[i] + h * ((1 - gamma_) * a0 + gamma_ * a1[i]);
+      qn_[i] = start_q_[i] + h * h * (start_qa_[i] + beta_ * a1[i]);
+      vn_[i] = v0[i] + h * (start_va_[i] + gamma_ * a1[i]);
     }
     if (!opt_.modified) return;
     // Each group by the rotation update (dae/hht_rotation.h), with G(e_{n+1}) at the
-    // previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start.
+    // previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start; the step's
+    // part of it from StepStart.
     using L = HhtRotationLayout;
     const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
       const int g = groups[grp];
-      double x[L::kInputs], y[L::kOutputs];
-      for (int k = 0; k < 4; ++k) {
-        x[L::kE0 + k] = q0[g + k];
-        x[L::kEd0 + k] = v0[g + k];
-        x[L::kA0 + k] = state_.a[g + k];
-        x[L::kA1 + k] = an_[g + k];
-        x[L::kEIter + k] = e_iter_[g + k];
-      }
-      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
-      HhtRotationMap(sc, h, r, x, y);
+      double y[L::kOutputs];
+      HhtRotationIterate(sc, h, rotation_start_[grp], &q0[g], &an_[g], &e_iter_[g], y);
       for (int k = 0; k < 4; ++k) {
         qn_[g + k] = y[L::kE1 + k];
         vn_[g + k] = y[L::kEd1 + k];
@@ -1036,14 +1018,19 @@ class HhtIntegrator final : public Integrator {
   }
   static constexpr int kMaxTreeNode = 48;
 
-  // Weighted RMS norm of the position- and velocity-level Newton correction.
-  double CorrectionNorm(double h) const {
-    double sum = 0;
+  // Weighted RMS norm of the position- and velocity-level Newton correction. The terms
+  // first (a loop without a carried sum, so that the divisions run in vector registers),
+  // then their sum in order: the same number as one loop.
+  double CorrectionNorm(double h) {
+    const double cq = mix_ * beta_ * h * h, cv = mix_ * gamma_ * h;
+    double* term = norm_terms_.data();
     for (int i = 0; i < nq_; ++i) {
-      const double dq = mix_ * beta_ * h * h * x_[i] / (1 + std::abs(qn_[i]));
-      const double dv = mix_ * gamma_ * h * x_[i] / (1 + std::abs(vn_[i]));
-      sum += dq * dq + dv * dv;
+      const double dq = cq * x_[i] / (1 + std::abs(qn_[i]));
+      const double dv = cv * x_[i] / (1 + std::abs(vn_[i]));
+      term[i] = dq * dq + dv * dv;
     }
+    double sum = 0;
+    for (int i = 0; i < nq_; ++i) sum += term[i];
     return std::sqrt(sum / (2 * nq_));
   }
 
@@ -1185,6 +1172,7 @@ class HhtIntegrator final : public Integrator {
   // kinematic update is then taken at the Euler parameters of a first pass with G(e_n)
   // (e_iter_), as a Newton iteration does after its correction.
   void Predict(double h) {
+    StepStart(h);
     std::copy(state_.a.begin(), state_.a.end(), an_.begin());
     std::copy(state_.lambda.begin(), state_.lambda.end(), lamn_.begin());
     const bool extrapolate = linear_predictor_ && h_prev_ > 0;
@@ -1199,6 +1187,41 @@ class HhtIntegrator final : public Integrator {
       for (int g : sys_.quaternion_offsets())
         for (int k = 0; k < 4; ++k) e_iter_[g + k] = qn_[g + k];
       Kinematics(h);
+    }
+  }
+
+  // The terms of Kinematics that a step of size h from state_ fixes: Newmark's
+  // q_n + h v_n, (1/2 - beta) a_n and (1 - gamma) a_n (abar-scaled in the equilibrium
+  // form) and alpha a_n, and each group's part of the rotation update (HhtRotationStartOf).
+  // The same operations as computing them at every iterate: the same numbers.
+  void StepStart(double h) {
+    start_h_ = h;
+    // abar_n - a_n = -alpha (a_n - a_{n-1}) is proportional to the step that made it; a
+    // step of another size needs it scaled by h / h_prev, or every change of the step
+    // (to land on an output time, or by the step-size control) costs an O(h^2) local
+    // error and the method drops to first order.
+    const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
+    for (int i = 0; i < nq_; ++i) {
+      const double a0 = equilibrium_ ? state_.a[i] + r * (abar_[i] - state_.a[i]) : state_.a[i];
+      start_q_[i] = state_.q[i] + h * state_.v[i];
+      start_qa_[i] = (0.5 - beta_) * a0;
+      start_va_[i] = (1 - gamma_) * a0;
+      start_aa_[i] = alpha_ * state_.a[i];
+    }
+    if (!opt_.modified) return;
+    using L = HhtRotationLayout;
+    const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
+    const std::vector<int>& groups = sys_.quaternion_offsets();
+    for (size_t grp = 0; grp < groups.size(); ++grp) {
+      const int g = groups[grp];
+      double x[L::kInputs];
+      for (int k = 0; k < 4; ++k) {
+        x[L::kE0 + k] = state_.q[g + k];
+        x[L::kEd0 + k] = state_.v[g + k];
+        x[L::kA0 + k] = state_.a[g + k];
+      }
+      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
+      HhtRotationStartOf(sc, h, r, x, &rotation_start_[grp]);
     }
   }
 
@@ -1310,6 +1333,7 @@ class HhtIntegrator final : public Integrator {
   std::vector<double> qn_, vn_, an_, lamn_, fn_, f_, force_, con_, res_, x_;
   // C_q^T lambda from the system (EvalOutput::constraint_transpose_w) where it gives it.
   std::vector<double> cqtw_;
+  std::vector<double> norm_terms_;  // CorrectionNorm's
   bool cqtw_product_ = false;
   std::vector<double> e_iter_;  // previous Newton iterate of q_{n+1} (modified scheme)
   // Equilibrium form: abar_n and abar_{n+1}; per quaternion group omegabar'_n, _{n+1}.
@@ -1318,6 +1342,11 @@ class HhtIntegrator final : public Integrator {
   std::vector<double> a_prev_, lam_prev_;
   bool linear_predictor_ = false;  // HhtOptions::predictor resolved
   std::vector<double> rotation_;   // RotationBlocks: 32 per group
+  // What a step of size start_h_ fixes in Kinematics (StepStart): per coordinate and
+  // per group.
+  std::vector<double> start_q_, start_qa_, start_va_, start_aa_;
+  std::vector<HhtRotationStart> rotation_start_;
+  double start_h_ = 0;
   State state_;
   Summary summary_;
   std::string message_;

@@ -40,44 +40,11 @@ struct HhtRotationInside {
   T th[3], w1[3], ang2, c, sc, eu[4], ed[4], s;
 };
 
+// The map's last part, from theta and omega_{n+1} (HhtRotationMap and HhtRotationIterate).
 template <class T>
-void HhtRotationMap(const HhtRotationScheme& sc, double h, double r, const T* x, T* y,
-                    HhtRotationInside<T>* inside = nullptr) {
+void HhtRotationFinish(const HhtRotationScheme& sc, double h, const T* e0, const T* a1,
+                       const T* th, const T* w1, T* y, HhtRotationInside<T>* inside) {
   using L = HhtRotationLayout;
-  const T* e0 = x + L::kE0;
-  const T* ed0 = x + L::kEd0;
-  const T* an = x + L::kA0;
-  const T* wb0 = x + L::kWbar0;
-  const T* a1 = x + L::kA1;
-  const T* eg = x + L::kEIter;
-  auto Gx = [](const T* e, const T* v, T* out) {
-    out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
-    out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
-    out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
-  };
-  T w0[3], dw0[3], dw1[3], th[3], w1[3];
-  Gx(e0, ed0, w0);
-  Gx(eg, a1, dw1);
-  if (sc.equilibrium) {
-    T dwn[3];
-    Gx(e0, an, dwn);
-    for (int k = 0; k < 3; ++k) {
-      dw0[k] = 2 * dwn[k] + r * (wb0[k] - 2 * dwn[k]);
-      dw1[k] = 2 * ((1 + sc.alpha) * dw1[k] - sc.alpha * dwn[k]);
-    }
-  } else {
-    Gx(e0, an, dw0);
-    for (int k = 0; k < 3; ++k) {
-      dw0[k] *= 2;
-      dw1[k] *= 2;
-    }
-  }
-  for (int k = 0; k < 3; ++k) {
-    w0[k] *= 2;
-    y[L::kWbar1 + k] = dw1[k];
-    th[k] = h * w0[k] + h * h * ((0.5 - sc.beta) * dw0[k] + sc.beta * dw1[k]);
-    w1[k] = w0[k] + h * ((1 - sc.gamma) * dw0[k] + sc.gamma * dw1[k]);
-  }
   const T ang2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2];
   T c, sc_;
   using std::cos;
@@ -126,6 +93,104 @@ void HhtRotationMap(const HhtRotationScheme& sc, double h, double r, const T* x,
     inside->sc = sc_;
     inside->s = s;
   }
+}
+
+// G(e) v for the 4-vector v (Nikravesh's body matrix G: omega_body = 2 G(e) e').
+template <class T>
+inline void HhtRotationG(const T* e, const T* v, T* out) {
+  out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
+  out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
+  out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
+}
+
+template <class T>
+void HhtRotationMap(const HhtRotationScheme& sc, double h, double r, const T* x, T* y,
+                    HhtRotationInside<T>* inside = nullptr) {
+  using L = HhtRotationLayout;
+  const T* e0 = x + L::kE0;
+  const T* ed0 = x + L::kEd0;
+  const T* an = x + L::kA0;
+  const T* wb0 = x + L::kWbar0;
+  const T* a1 = x + L::kA1;
+  const T* eg = x + L::kEIter;
+  T w0[3], dw0[3], dw1[3], th[3], w1[3];
+  HhtRotationG(e0, ed0, w0);
+  HhtRotationG(eg, a1, dw1);
+  if (sc.equilibrium) {
+    T dwn[3];
+    HhtRotationG(e0, an, dwn);
+    for (int k = 0; k < 3; ++k) {
+      dw0[k] = 2 * dwn[k] + r * (wb0[k] - 2 * dwn[k]);
+      dw1[k] = 2 * ((1 + sc.alpha) * dw1[k] - sc.alpha * dwn[k]);
+    }
+  } else {
+    HhtRotationG(e0, an, dw0);
+    for (int k = 0; k < 3; ++k) {
+      dw0[k] *= 2;
+      dw1[k] *= 2;
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    w0[k] *= 2;
+    y[L::kWbar1 + k] = dw1[k];
+    th[k] = h * w0[k] + h * h * ((0.5 - sc.beta) * dw0[k] + sc.beta * dw1[k]);
+    w1[k] = w0[k] + h * ((1 - sc.gamma) * dw0[k] + sc.gamma * dw1[k]);
+  }
+  HhtRotationFinish(sc, h, e0, a1, th, w1, y, inside);
+}
+
+// The map split for the integrator's Newton iteration, where only a_{n+1} and e_iter
+// change: HhtRotationStartOf takes what the step fixes (e_n, e'_n, a_n, wbar_n, h, r)
+// once per step, HhtRotationIterate the rest at each iterate. The same operations in the
+// same order as HhtRotationMap: the same numbers to the last bit
+// (HhtRotation.SplitMapIsTheMap).
+struct HhtRotationStart {
+  double w0[3];   // omega_n = 2 G(e_n) e'_n
+  double hw0[3];  // h omega_n
+  double qa[3];   // (1/2 - beta) omegabar'_n: theta's history term
+  double va[3];   // (1 - gamma) omegabar'_n: omega_{n+1}'s
+  double adw[3];  // alpha G(e_n) a_n (equilibrium form: omegabar'_{n+1}'s)
+};
+
+// x: the map's inputs (HhtRotationLayout; a_{n+1} and e_iter are not read).
+inline void HhtRotationStartOf(const HhtRotationScheme& sc, double h, double r, const double* x,
+                               HhtRotationStart* st) {
+  using L = HhtRotationLayout;
+  const double* e0 = x + L::kE0;
+  const double* an = x + L::kA0;
+  const double* wb0 = x + L::kWbar0;
+  double w0[3], dw0[3], dwn[3];
+  HhtRotationG(e0, x + L::kEd0, w0);
+  HhtRotationG(e0, an, dwn);
+  for (int k = 0; k < 3; ++k) {
+    if (sc.equilibrium) {
+      dw0[k] = 2 * dwn[k] + r * (wb0[k] - 2 * dwn[k]);
+      st->adw[k] = sc.alpha * dwn[k];
+    } else {
+      dw0[k] = dwn[k] * 2;
+      st->adw[k] = 0;
+    }
+    w0[k] *= 2;
+    st->w0[k] = w0[k];
+    st->hw0[k] = h * w0[k];
+    st->qa[k] = (0.5 - sc.beta) * dw0[k];
+    st->va[k] = (1 - sc.gamma) * dw0[k];
+  }
+}
+
+// y: the map's outputs, from e_n, a_{n+1} and e_iter.
+inline void HhtRotationIterate(const HhtRotationScheme& sc, double h, const HhtRotationStart& st,
+                               const double* e0, const double* a1, const double* eg, double* y) {
+  using L = HhtRotationLayout;
+  double dw1[3], th[3], w1[3];
+  HhtRotationG(eg, a1, dw1);
+  for (int k = 0; k < 3; ++k) {
+    dw1[k] = sc.equilibrium ? 2 * ((1 + sc.alpha) * dw1[k] - st.adw[k]) : dw1[k] * 2;
+    y[L::kWbar1 + k] = dw1[k];
+    th[k] = st.hw0[k] + h * h * (st.qa[k] + sc.beta * dw1[k]);
+    w1[k] = st.w0[k] + h * (st.va[k] + sc.gamma * dw1[k]);
+  }
+  HhtRotationFinish<double>(sc, h, e0, a1, th, w1, y, nullptr);
 }
 
 // The exact derivative of the group's e_{n+1} and e'_{n+1} with respect to a_{n+1} (4 x 4

@@ -171,11 +171,7 @@ class Sweeps {
     win_first_ = win_.first(i);
     return true;
   }
-  static void Gx(const double* e, const double* v, double* out) {
-    out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
-    out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
-    out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
-  }
+  static void Gx(const double* e, const double* v, double* out) { dae::HhtRotationG(e, v, out); }
 
   // Evaluates everything step k needs (matrices at s_k, the Newton matrix, the group
   // Jacobians; for the negrut form the matrices of F at s_{k-1}).

@@ -405,6 +405,43 @@ TEST(HhtRotationDerivative, MatchesAutoDiffOfTheMap) {
   EXPECT_LT(worst, 1e-12);
 }
 
+// The map split for the Newton iteration (HhtRotationStartOf once per step,
+// HhtRotationIterate per iterate) gives HhtRotationMap's numbers to the last bit, in both
+// forms, with r != 1, several iterates per start, and on the small-angle branch; a
+// different a_{n+1} changes them (the split reads its inputs).
+TEST(HhtRotation, SplitMapIsTheMap) {
+  using L = HhtRotationLayout;
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int compared = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const HhtRotationScheme sc = HhtRotationScheme::Of(trial % 4 < 2 ? -0.2 : -0.05, trial % 2 == 0);
+    const bool tiny = trial >= 30;
+    const double h = tiny ? 1e-6 : 0.01 * (1 + trial % 5), r = trial % 3 == 0 ? 1.0 : 0.7;
+    double x[L::kInputs];
+    for (double& v : x) v = u(rng);
+    if (tiny)
+      for (int k = L::kEd0; k < L::kInputs; ++k) x[k] *= 1e-3;
+    HhtRotationStart st;
+    HhtRotationStartOf(sc, h, r, x, &st);
+    for (int it = 0; it < 3; ++it) {
+      for (int k = 0; k < 4; ++k) {
+        x[L::kA1 + k] = u(rng);
+        x[L::kEIter + k] = x[L::kE0 + k] + 0.01 * u(rng);
+      }
+      double y[L::kOutputs], ys[L::kOutputs];
+      HhtRotationMap(sc, h, r, x, y);
+      HhtRotationIterate(sc, h, st, x + L::kE0, x + L::kA1, x + L::kEIter, ys);
+      for (int k = 0; k < L::kOutputs; ++k) EXPECT_EQ(ys[k], y[k]) << "trial " << trial << ", output " << k;
+      ++compared;
+      x[L::kA1] += 0.5;
+      HhtRotationIterate(sc, h, st, x + L::kE0, x + L::kA1, x + L::kEIter, ys);
+      EXPECT_NE(ys[L::kWbar1], y[L::kWbar1]);
+    }
+  }
+  EXPECT_EQ(compared, 120);
+}
+
 // A Newton matrix with room for the blocks but assembled without them is the
 // first-order matrix: the same values at the first-order pattern's entries, zeros at
 // the rest.
