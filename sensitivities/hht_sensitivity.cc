@@ -50,22 +50,24 @@ struct Scheme {
 // The rotation update of one Euler-parameter group (dae/hht_rotation.h), x = (e_n, e'_n,
 // a_n, wbar_n, a_{n+1}, e_iter) (4+4+4+3+4+4 = 23) giving y = (e_{n+1}, e'_{n+1},
 // wbar_{n+1}) (4+4+3 = 11).
-constexpr int kGx = dae::HhtRotationLayout::kEIter;  // inputs other than e_iter
+using L = dae::HhtRotationLayout;
+constexpr int kGx = L::kEIter;  // inputs other than e_iter
 
-using GroupJac = Eigen::Matrix<double, 11, kGx>;
+using GroupJac = Eigen::Matrix<double, L::kOutputs, kGx>;
 
 // Total derivative of y with respect to the first 19 inputs, with e_iter = e_{n+1}.
 GroupJac GroupJacobian(const Scheme& sc, double h, double r, const double* xin) {
-  using Deriv = Eigen::Matrix<double, 23, 1>;
+  using Deriv = Eigen::Matrix<double, L::kInputs, 1>;
   using AD = Eigen::AutoDiffScalar<Deriv>;
-  AD x[23], y[11];
-  for (int i = 0; i < 23; ++i) x[i] = AD(xin[i], 23, i);
+  AD x[L::kInputs], y[L::kOutputs];
+  for (int i = 0; i < L::kInputs; ++i) x[i] = AD(xin[i], L::kInputs, i);
   dae::HhtRotationMap(dae::HhtRotationScheme::Of(sc.alpha, sc.eq), h, r, x, y);
-  Eigen::Matrix<double, 11, 23> J;
-  for (int i = 0; i < 11; ++i) J.row(i) = y[i].derivatives().transpose();
-  const Eigen::Matrix<double, 11, 4> Jit = J.rightCols<4>();
-  const Eigen::Matrix4d A = Eigen::Matrix4d::Identity() - Jit.topRows<4>();
-  const Eigen::Matrix<double, 4, kGx> de = A.partialPivLu().solve(J.topLeftCorner<4, kGx>());
+  Eigen::Matrix<double, L::kOutputs, L::kInputs> J;
+  for (int i = 0; i < L::kOutputs; ++i) J.row(i) = y[i].derivatives().transpose();
+  const Eigen::Matrix<double, L::kOutputs, 4> Jit = J.middleCols<4>(L::kEIter);
+  const Eigen::Matrix4d A = Eigen::Matrix4d::Identity() - Jit.middleRows<4>(L::kE1);
+  const Eigen::Matrix<double, 4, kGx> de =
+      A.partialPivLu().solve(J.block<4, kGx>(L::kE1, 0));
   return J.leftCols<kGx>() + Jit * de;
 }
 
@@ -195,23 +197,23 @@ class Sweeps {
       const double r = Ratio(k);
       for (size_t grp = 0; grp < groups_.size(); ++grp) {
         const int g = groups_[grp];
-        double x[23];
+        double x[L::kInputs];
         for (int i = 0; i < 4; ++i) {
-          x[i] = win_.q(k - 1)[g + i];
-          x[4 + i] = win_.v(k - 1)[g + i];
-          x[8 + i] = win_.a(k - 1)[g + i];
-          x[15 + i] = win_.a(k)[g + i];
-          x[19 + i] = win_.q(k)[g + i];
+          x[L::kE0 + i] = win_.q(k - 1)[g + i];
+          x[L::kEd0 + i] = win_.v(k - 1)[g + i];
+          x[L::kA0 + i] = win_.a(k - 1)[g + i];
+          x[L::kA1 + i] = win_.a(k)[g + i];
+          x[L::kEIter + i] = win_.q(k)[g + i];
         }
-        for (int i = 0; i < 3; ++i) x[12 + i] = wbar_[3 * grp + i];
+        for (int i = 0; i < 3; ++i) x[L::kWbar0 + i] = wbar_[3 * grp + i];
         T_[grp] = GroupJacobian(sc_, h, r, x);
         // The Newton matrix's rotation blocks (dae/hht.h, HhtNewtonMatrix::Assemble):
         // with them it is Rt_u itself.
         double de[16], ded[16];
         for (int i = 0; i < 4; ++i)
           for (int j = 0; j < 4; ++j) {
-            de[4 * i + j] = T_[grp](i, dae::HhtRotationLayout::kA1 + j);
-            ded[4 * i + j] = T_[grp](4 + i, dae::HhtRotationLayout::kA1 + j);
+            de[4 * i + j] = T_[grp](L::kE1 + i, L::kA1 + j);
+            ded[4 * i + j] = T_[grp](L::kEd1 + i, L::kA1 + j);
           }
         dae::HhtRotationBlock(dae::HhtRotationScheme::Of(sc_.alpha, sc_.eq), h, de, ded,
                               &rotation_[32 * grp]);
@@ -255,8 +257,8 @@ class Sweeps {
     for (size_t grp = 0; grp < groups_.size(); ++grp) {
       const int g = groups_[grp];
       const Eigen::Map<const Eigen::Vector4d> x(da + g);
-      Eigen::Map<Eigen::Vector4d>(dq + g) = T_[grp].block<4, 4>(0, 15) * x;
-      Eigen::Map<Eigen::Vector4d>(dv + g) = T_[grp].block<4, 4>(4, 15) * x;
+      Eigen::Map<Eigen::Vector4d>(dq + g) = T_[grp].block<4, 4>(L::kE1, L::kA1) * x;
+      Eigen::Map<Eigen::Vector4d>(dv + g) = T_[grp].block<4, 4>(L::kEd1, L::kA1) * x;
     }
   }
   void PhiAT(double h, const double* sq, const double* sv, double* da) const {
@@ -265,8 +267,8 @@ class Sweeps {
     for (size_t grp = 0; grp < groups_.size(); ++grp) {
       const int g = groups_[grp];
       Eigen::Map<Eigen::Vector4d>(da + g) +=
-          T_[grp].block<4, 4>(0, 15).transpose() * Eigen::Map<const Eigen::Vector4d>(sq + g) +
-          T_[grp].block<4, 4>(4, 15).transpose() * Eigen::Map<const Eigen::Vector4d>(sv + g);
+          T_[grp].block<4, 4>(L::kE1, L::kA1).transpose() * Eigen::Map<const Eigen::Vector4d>(sq + g) +
+          T_[grp].block<4, 4>(L::kEd1, L::kA1).transpose() * Eigen::Map<const Eigen::Vector4d>(sv + g);
     }
   }
   // y = Rt_u^T mu (transposed = true) or Rt_u x (false), exact.
@@ -456,7 +458,7 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
         if (!sc_.eq) break;
         const int g = groups_[grp];
         Eigen::Map<Eigen::Vector4d>(rhs.data() + g) +=
-            T_[grp].block<3, 4>(8, 15).transpose() * Eigen::Map<const Eigen::Vector3d>(Swb + 3 * grp);
+            T_[grp].block<3, 4>(L::kWbar1, L::kA1).transpose() * Eigen::Map<const Eigen::Vector3d>(Swb + 3 * grp);
       }
       for (int c = 0; c < nc_; ++c) rhs[nq_ + c] = Sl[c];
       if (!Solve(h, true, rhs.data(), error)) return false;
@@ -496,21 +498,21 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       }
       for (int grp = 0; grp < ng; ++grp) {
         const int g = groups_[grp];
-        Eigen::Matrix<double, 11, 1> ybar;
-        ybar.head<4>() = Eigen::Map<const Eigen::Vector4d>(sq.data() + g);
-        ybar.segment<4>(4) = Eigen::Map<const Eigen::Vector4d>(sv.data() + g);
+        Eigen::Matrix<double, L::kOutputs, 1> ybar;
+        ybar.segment<4>(L::kE1) = Eigen::Map<const Eigen::Vector4d>(sq.data() + g);
+        ybar.segment<4>(L::kEd1) = Eigen::Map<const Eigen::Vector4d>(sv.data() + g);
         if (sc_.eq)
-          ybar.tail<3>() = Eigen::Map<const Eigen::Vector3d>(Swb + 3 * grp);
+          ybar.segment<3>(L::kWbar1) = Eigen::Map<const Eigen::Vector3d>(Swb + 3 * grp);
         else
-          ybar.tail<3>().setZero();
+          ybar.segment<3>(L::kWbar1).setZero();
         const Eigen::Matrix<double, kGx, 1> xbar = T_[grp].transpose() * ybar;
         for (int i = 0; i < 4; ++i) {
-          Pq[g + i] += xbar[i];
-          Pv[g + i] += xbar[4 + i];
-          Pa[g + i] += xbar[8 + i];
+          Pq[g + i] += xbar[L::kE0 + i];
+          Pv[g + i] += xbar[L::kEd0 + i];
+          Pa[g + i] += xbar[L::kA0 + i];
         }
         if (sc_.eq)
-          for (int i = 0; i < 3; ++i) Pwb[3 * grp + i] += xbar[12 + i];
+          for (int i = 0; i < 3; ++i) Pwb[3 * grp + i] += xbar[L::kWbar0 + i];
       }
       // Negrut form: R_q has -alpha/(1+alpha) F_{k-1}, F = C_q^T lambda - Q.
       if (!sc_.eq) {
@@ -635,16 +637,16 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       for (int grp = 0; grp < ng; ++grp) {
         const int g = groups_[grp];
         for (int i = 0; i < 4; ++i) {
-          xg[i] = dq[g + i];
-          xg[4 + i] = dv[g + i];
-          xg[8 + i] = da[g + i];
-          xg[15 + i] = 0;
+          xg[L::kE0 + i] = dq[g + i];
+          xg[L::kEd0 + i] = dv[g + i];
+          xg[L::kA0 + i] = da[g + i];
+          xg[L::kA1 + i] = 0;
         }
-        for (int i = 0; i < 3; ++i) xg[12 + i] = sc_.eq ? ds.wb[ow + 3 * grp + i] : 0.0;
-        const Eigen::Matrix<double, 11, 1> y = T_[grp] * xg;
+        for (int i = 0; i < 3; ++i) xg[L::kWbar0 + i] = sc_.eq ? ds.wb[ow + 3 * grp + i] : 0.0;
+        const Eigen::Matrix<double, L::kOutputs, 1> y = T_[grp] * xg;
         for (int i = 0; i < 4; ++i) {
-          dqe[g + i] = y[i];
-          dve[g + i] = y[4 + i];
+          dqe[g + i] = y[L::kE1 + i];
+          dve[g + i] = y[L::kEd1 + i];
         }
       }
       // Rt_u du = -(R_q dq_e + R_v dv_e + R_p e_p [- alpha s dF_{k-1}]).
@@ -680,15 +682,15 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       for (int c = 0; c < nc_; ++c) dn.l[oc + c] = rhs[nq_ + c];
       for (int grp = 0; grp < ng; ++grp) {
         const int g = groups_[grp];
-        for (int i = 0; i < 4; ++i) xg[15 + i] = rhs[g + i];
+        for (int i = 0; i < 4; ++i) xg[L::kA1 + i] = rhs[g + i];
         for (int i = 0; i < 4; ++i) {
-          xg[i] = dq[g + i];
-          xg[4 + i] = dv[g + i];
-          xg[8 + i] = da[g + i];
+          xg[L::kE0 + i] = dq[g + i];
+          xg[L::kEd0 + i] = dv[g + i];
+          xg[L::kA0 + i] = da[g + i];
         }
-        for (int i = 0; i < 3; ++i) xg[12 + i] = sc_.eq ? ds.wb[ow + 3 * grp + i] : 0.0;
-        const Eigen::Matrix<double, 11, 1> y = T_[grp] * xg;
-        for (int i = 0; i < 3; ++i) dn.wb[ow + 3 * grp + i] = y[8 + i];
+        for (int i = 0; i < 3; ++i) xg[L::kWbar0 + i] = sc_.eq ? ds.wb[ow + 3 * grp + i] : 0.0;
+        const Eigen::Matrix<double, L::kOutputs, 1> y = T_[grp] * xg;
+        for (int i = 0; i < 3; ++i) dn.wb[ow + 3 * grp + i] = y[L::kWbar1 + i];
       }
     }
     std::swap(ds, dn);
