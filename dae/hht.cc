@@ -947,19 +947,16 @@ class HhtIntegrator final : public Integrator {
   void RotationBlocks(double h) {
     using L = HhtRotationLayout;
     const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
-    const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
+    const double r = HistoryRatio(h);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
       const int g = groups[grp];
       double x[L::kInputs];
+      GroupStepInputs(grp, x);
       for (int k = 0; k < 4; ++k) {
-        x[L::kE0 + k] = state_.q[g + k];
-        x[L::kEd0 + k] = state_.v[g + k];
-        x[L::kA0 + k] = state_.a[g + k];
         x[L::kA1 + k] = an_[g + k];
         x[L::kEIter + k] = qn_[g + k];
       }
-      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
       double de[16], ded[16];
       HhtRotationDerivative(sc, h, r, x, de, ded);
       HhtRotationBlock(sc, h, de, ded, &rotation_[32 * grp]);
@@ -1196,11 +1193,7 @@ class HhtIntegrator final : public Integrator {
   // The same operations as computing them at every iterate: the same numbers.
   void StepStart(double h) {
     start_h_ = h;
-    // abar_n - a_n = -alpha (a_n - a_{n-1}) is proportional to the step that made it; a
-    // step of another size needs it scaled by h / h_prev, or every change of the step
-    // (to land on an output time, or by the step-size control) costs an O(h^2) local
-    // error and the method drops to first order.
-    const double r = equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0;
+    const double r = HistoryRatio(h);
     for (int i = 0; i < nq_; ++i) {
       const double a0 = equilibrium_ ? state_.a[i] + r * (abar_[i] - state_.a[i]) : state_.a[i];
       start_q_[i] = state_.q[i] + h * state_.v[i];
@@ -1213,16 +1206,29 @@ class HhtIntegrator final : public Integrator {
     const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
-      const int g = groups[grp];
       double x[L::kInputs];
-      for (int k = 0; k < 4; ++k) {
-        x[L::kE0 + k] = state_.q[g + k];
-        x[L::kEd0 + k] = state_.v[g + k];
-        x[L::kA0 + k] = state_.a[g + k];
-      }
-      for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
+      GroupStepInputs(grp, x);
       HhtRotationStartOf(sc, h, r, x, &rotation_start_[grp]);
     }
+  }
+
+  // abar_n - a_n = -alpha (a_n - a_{n-1}) is proportional to the step that made it; a step
+  // of size h after one of h_prev needs it scaled by r = h / h_prev (equilibrium form; 1
+  // else), or every change of the step (to land on an output time, or by the step-size
+  // control) costs an O(h^2) local error and the method drops to first order.
+  double HistoryRatio(double h) const { return equilibrium_ && h_prev_ > 0 ? h / h_prev_ : 1.0; }
+
+  // The inputs of group grp's rotation update that the step fixes (e_n, e'_n, a_n, wbar_n;
+  // HhtRotationLayout) from state_.
+  void GroupStepInputs(size_t grp, double* x) const {
+    using L = HhtRotationLayout;
+    const int g = sys_.quaternion_offsets()[grp];
+    for (int k = 0; k < 4; ++k) {
+      x[L::kE0 + k] = state_.q[g + k];
+      x[L::kEd0 + k] = state_.v[g + k];
+      x[L::kA0 + k] = state_.a[g + k];
+    }
+    for (int k = 0; k < 3; ++k) x[L::kWbar0 + k] = wbar_[3 * grp + k];
   }
 
   // The options whose `auto` depends on the linear solver (jacobian_cost, predictor),
