@@ -56,9 +56,9 @@ struct EvalOutput {
   double* constraint_dt = nullptr;   // C_t(q, t), nc   (velocity level: C_q v + C_t = 0)
   double* acc_rhs = nullptr;         // gamma, nc: acceleration level C_q a = gamma, i.e.
                                      // gamma = -(C_q v)_q v - 2 C_qt v - C_tt
-  // Optional outputs for callers that inspect the equations (the C API); the integrators
-  // do not request them, and a system that does not provide one leaves it untouched
-  // (callers must check that the system documents it).
+  // The next two: optional outputs for callers that inspect the equations (the C API);
+  // the integrators do not request them, and a system that does not provide one leaves
+  // it untouched (callers must check that the system documents it).
   double* force_quadratic_velocity = nullptr;  // Q_v, nq: the part of Q that is the
                                      // velocity-quadratic inertia terms (gyroscopic,
                                      // centripetal); Q - Q_v are the applied forces
