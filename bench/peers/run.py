@@ -349,7 +349,7 @@ def run_step_flops(tools, tmp, results, repeats):
         args += ["--model", "%d=%s" % (n, write_chain_model(n, tmp))]
     out = os.path.join(results, "step_flops.json")
     args += ["--benchmark_out=" + out, "--benchmark_out_format=json",
-             "--benchmark_repetitions=%d" % repeats, "--benchmark_report_aggregates_only=true",
+             "--benchmark_repetitions=%d" % repeats, "--benchmark_display_aggregates_only=true",
              "--benchmark_enable_random_interleaving=true"]
     print("step against refactor + solve (bench_step_flops) ...", flush=True)
     load = load_avg()
@@ -609,10 +609,13 @@ def step_flops_section(results):
     with open(p) as f:
         d = json.load(f)
     med = {}
+    least = {}  # the smallest CPU time over the repetitions (files since 2026-11-25 16:40)
     for b in d["benchmarks"]:
+        name = b["run_name"] if "run_name" in b else b["name"]
+        if b.get("run_type") == "iteration":
+            least[name] = min(least.get(name, float("inf")), b["cpu_time"])
         if b.get("aggregate_name") not in (None, "median"):
             continue
-        name = b["run_name"] if "run_name" in b else b["name"]
         med[name] = b
     ctx = d["context"]
     out = ["## Goal 3: one HHT step against one bare KLU refactorisation + solve", "",
@@ -715,6 +718,28 @@ def step_flops_section(results):
                 "tree's | tree refactor GFLOP/s | step, tree / tree refactor + solve | "
                 "step, tree / KLU refactor + solve | solution vs KLU (rel.) |",
                 "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"] + rows
+    # Goal 3 by the minima: on a machine shared with other jobs, interference only adds
+    # time, so the smallest of the interleaved repetitions is the steadier estimate.
+    mins = []
+    for n in (100, 1000):
+        rs, rf, so = (get(x, n) for x in ("BM_KluRefactorSolve", "BM_KluRefactor", "BM_KluSolve"))
+        if not (rs and rf and so):
+            continue
+        lrs, lrf, lso = (least.get(b["run_name"]) for b in (rs, rf, so))
+        for k in (12, 10):
+            st = step(n, k, 1)
+            lst = least.get(st["run_name"]) if st else None
+            if not (lst and lrs and lrf and lso):
+                continue
+            mins.append("| %d | 1e-%d | %.0f | %.0f | %.2f | %.0f + %.0f | %.2f |" % (
+                n, k, lst, lrs, lst / lrs, lrf, lso, lst / (lrf + lso)))
+    if mins:
+        out += ["", "Goal 3 by the smallest of the %s repetitions of each benchmark (interference "
+                "from other jobs only adds time; the medians above move with it): the tree's step "
+                "against the bare KLU refactorisation + solve, and against the sum of the "
+                "refactorisation and the solve timed apart:" % d["benchmarks"][0].get("repetitions", "?"), "",
+                "| N | threshold | step, tree [us] | KLU refactor + solve [us] | ratio | KLU refactor "
+                "+ solve apart [us] | ratio |", "| ---: | ---: | ---: | ---: | ---: | ---: | ---: |"] + mins
     fits = []
     for n in (100, 1000):
         r1, r2 = get("BM_HhtRefresh/%d" % n, 1), get("BM_HhtRefresh/%d" % n, 2)
