@@ -226,48 +226,39 @@ HhtNewtonMatrix::HhtNewtonMatrix(MechanicalSystem& system, const HhtOptions& opt
       {Matrix::kMassTimesAccDq, 0}, {Matrix::kConstraintTDq, 0}, {Matrix::kForceDq, 0},
       {Matrix::kForceDv, 0},        {Matrix::kConstraintDq, nq}};
   const std::vector<int>& groups = system_.quaternion_offsets();
-  std::vector<int> group_of(rotation_blocks && options.modified ? nq : 0, -1);
-  for (size_t grp = 0; grp < groups.size() && !group_of.empty(); ++grp)
-    for (int k = 0; k < 4; ++k) group_of[groups[grp] + k] = static_cast<int>(grp);
-  rotation_blocks_ = !group_of.empty() && !groups.empty();
-  if (!group_of.empty()) {
-    std::vector<std::pair<int, int>> fill;
-    for (const auto& [m, row0] : rotated) {
-      const CscPattern& p = system_.pattern(m);
-      for (int c = 0; c < nq; ++c)
-        if (group_of[c] >= 0)
-          for (int k = p.col_start[c]; k < p.col_start[c + 1]; ++k)
-            for (int j = 0; j < 4; ++j)
-              fill.push_back({row0 + p.row_index[k], groups[group_of[c]] + j});
-    }
-    assembler_.AddEntries(fill);
-  }
-  assembler_.Finalize(nq + nc, nq + nc);
-  if (!group_of.empty()) {
-    const CscPattern& result = assembler_.pattern();
-    for (const auto& [m, row0] : rotated) {
-      const CscPattern& p = system_.pattern(m);
-      auto& list = rot_rows_[static_cast<int>(m)];
-      std::vector<int> slot(p.rows, -1);  // the row's entry in list for this group
-      for (size_t grp = 0; grp < groups.size(); ++grp) {
-        const size_t first = list.size();
-        for (int c = 0; c < 4; ++c)
-          for (int k = p.col_start[groups[grp] + c]; k < p.col_start[groups[grp] + c + 1]; ++k) {
-            const int row = p.row_index[k];
-            if (slot[row] < 0) {
-              slot[row] = static_cast<int>(list.size());
-              RotationRow rr{static_cast<int>(grp), {-1, -1, -1, -1}, {}};
-              for (int j = 0; j < 4; ++j) rr.pos[j] = result.find(row0 + row, groups[grp] + j);
-              list.push_back(rr);
-            }
-            list[slot[row]].k[c] = k;
+  rotation_blocks_ = rotation_blocks && options.modified && !groups.empty();
+  // Per rotated matrix, each row it has in a group's four columns (its entries there, -1
+  // where it has none); the pattern gets that row in all four columns.
+  std::vector<std::pair<int, int>> fill;
+  std::vector<std::vector<int>> rows(kNumMatrices);  // each RotationRow's row
+  for (const auto& [m, row0] : rotated) {
+    if (!rotation_blocks_) break;
+    const CscPattern& p = system_.pattern(m);
+    auto& list = rot_rows_[static_cast<int>(m)];
+    std::vector<int> slot(p.rows, -1);  // the row's entry in list for this group
+    for (size_t grp = 0; grp < groups.size(); ++grp) {
+      const size_t first = list.size();
+      for (int c = 0; c < 4; ++c)
+        for (int k = p.col_start[groups[grp] + c]; k < p.col_start[groups[grp] + c + 1]; ++k) {
+          const int row = p.row_index[k];
+          if (slot[row] < 0) {
+            slot[row] = static_cast<int>(list.size());
+            list.push_back(RotationRow{static_cast<int>(grp), {-1, -1, -1, -1}, {}});
+            rows[static_cast<int>(m)].push_back(row0 + row);
+            for (int j = 0; j < 4; ++j) fill.push_back({row0 + row, groups[grp] + j});
           }
-        for (size_t i = first; i < list.size(); ++i)
-          for (int c = 0; c < 4; ++c)
-            if (list[i].k[c] >= 0) slot[p.row_index[list[i].k[c]]] = -1;
-      }
+          list[slot[row]].k[c] = k;
+        }
+      for (size_t i = first; i < list.size(); ++i) slot[rows[static_cast<int>(m)][i] - row0] = -1;
     }
   }
+  if (rotation_blocks_) assembler_.AddEntries(fill);
+  assembler_.Finalize(nq + nc, nq + nc);
+  for (int m = 0; m < kNumMatrices; ++m)
+    for (size_t i = 0; i < rot_rows_[m].size(); ++i)
+      for (int j = 0; j < 4; ++j)
+        rot_rows_[m][i].pos[j] =
+            assembler_.pattern().find(rows[m][i], groups[rot_rows_[m][i].group] + j);
 }
 
 int HhtNewtonMatrix::Assemble(double t, double h, const double* q, const double* v,
@@ -365,6 +356,7 @@ class HhtIntegrator final : public Integrator {
     equilibrium_ = opt_.form == HhtOptions::Form::kEquilibrium;
     // dq_{n+1}/da_{n+1} = mix_ beta h^2, dv_{n+1}/da_{n+1} = mix_ gamma h.
     mix_ = equilibrium_ ? 1 + alpha_ : 1.0;
+    scheme_ = HhtRotationScheme::Of(alpha_, equilibrium_);
     for (int g : sys_.quaternion_offsets())
       if (g < 0 || g + 4 > nq_)
         throw std::invalid_argument("HHT: quaternion offset " + std::to_string(g) +
@@ -851,12 +843,11 @@ class HhtIntegrator final : public Integrator {
     // previous iterate of e_{n+1} (stored in e_iter_), or e_n at the start; the step's
     // part of it from StepStart.
     using L = HhtRotationLayout;
-    const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
       const int g = groups[grp];
       double y[L::kOutputs];
-      HhtRotationIterate(sc, h, rotation_start_[grp], &q0[g], &an_[g], &e_iter_[g], y);
+      HhtRotationIterate(scheme_, h, rotation_start_[grp], &q0[g], &an_[g], &e_iter_[g], y);
       for (int k = 0; k < 4; ++k) {
         qn_[g + k] = y[L::kE1 + k];
         vn_[g + k] = y[L::kEd1 + k];
@@ -946,7 +937,6 @@ class HhtIntegrator final : public Integrator {
   // G(e_{n+1}) at the iterate's e_{n+1} (the fixed point, dae/hht_rotation.h).
   void RotationBlocks(double h) {
     using L = HhtRotationLayout;
-    const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const double r = HistoryRatio(h);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
@@ -958,8 +948,8 @@ class HhtIntegrator final : public Integrator {
         x[L::kEIter + k] = qn_[g + k];
       }
       double de[16], ded[16];
-      HhtRotationDerivative(sc, h, r, x, de, ded);
-      HhtRotationBlock(sc, h, de, ded, &rotation_[32 * grp]);
+      HhtRotationDerivative(scheme_, h, r, x, de, ded);
+      HhtRotationBlock(scheme_, h, de, ded, &rotation_[32 * grp]);
     }
   }
 
@@ -1203,12 +1193,11 @@ class HhtIntegrator final : public Integrator {
     }
     if (!opt_.modified) return;
     using L = HhtRotationLayout;
-    const HhtRotationScheme sc = HhtRotationScheme::Of(alpha_, equilibrium_);
     const std::vector<int>& groups = sys_.quaternion_offsets();
     for (size_t grp = 0; grp < groups.size(); ++grp) {
       double x[L::kInputs];
       GroupStepInputs(grp, x);
-      HhtRotationStartOf(sc, h, r, x, &rotation_start_[grp]);
+      HhtRotationStartOf(scheme_, h, r, x, &rotation_start_[grp]);
     }
   }
 
@@ -1324,6 +1313,7 @@ class HhtIntegrator final : public Integrator {
   double alpha_ = 0, beta_ = 0, gamma_ = 0;
   bool equilibrium_ = true;  // opt_.form == kEquilibrium
   double mix_ = 1;           // 1 + alpha (equilibrium form) or 1
+  HhtRotationScheme scheme_;  // the same constants for the rotation update
   // Its room for rotation blocks is HhtOptions::rotation_jacobian resolved: made where
   // they may be used (WantsRotationBlocks) and dropped where KLU's auto does not use them
   // (DropRotationRoom), so ExactRotation() needs no flag of its own.

@@ -33,18 +33,11 @@ void HhtRotationDerivative(const HhtRotationScheme& sc, double h, double r, cons
     drq[0] = dc * dang2;
     for (int j = 0; j < 3; ++j) drq[1 + j] = dsc * dang2 * m.th[j] + (j == k ? m.sc * bh2 : 0);
     double deu[4];  // e_n (x) drq
-    deu[0] = e0[0] * drq[0] - e0[1] * drq[1] - e0[2] * drq[2] - e0[3] * drq[3];
-    deu[1] = e0[0] * drq[1] + e0[1] * drq[0] + e0[2] * drq[3] - e0[3] * drq[2];
-    deu[2] = e0[0] * drq[2] - e0[1] * drq[3] + e0[2] * drq[0] + e0[3] * drq[1];
-    deu[3] = e0[0] * drq[3] + e0[1] * drq[2] - e0[2] * drq[1] + e0[3] * drq[0];
+    HhtQuatMul(e0, drq, deu);
     // ed = G(u)^T omega_{n+1} / 2: d ed = (G(du)^T omega_{n+1} + gamma h G(u)^T e_k) / 2.
-    const double* w = m.w1;
     const double* u = m.eu;
     double ded[4];
-    ded[0] = -deu[1] * w[0] - deu[2] * w[1] - deu[3] * w[2];
-    ded[1] = deu[0] * w[0] - deu[3] * w[1] + deu[2] * w[2];
-    ded[2] = deu[3] * w[0] + deu[0] * w[1] - deu[1] * w[2];
-    ded[3] = -deu[2] * w[0] + deu[1] * w[1] + deu[0] * w[2];
+    HhtRotationGt(deu, m.w1, ded);
     const double gtu[3][4] = {{-u[1], u[0], u[3], -u[2]},   // G(u)^T columns
                               {-u[2], -u[3], u[0], u[1]},
                               {-u[3], u[2], -u[1], u[0]}};

@@ -40,6 +40,32 @@ struct HhtRotationInside {
   T th[3], w1[3], ang2, c, sc, eu[4], ed[4], s;
 };
 
+// G(e) v for the 4-vector v (Nikravesh's body matrix G: omega_body = 2 G(e) e').
+template <class T>
+inline void HhtRotationG(const T* e, const T* v, T* out) {
+  out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
+  out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
+  out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
+}
+
+// G(e)^T w for the 3-vector w (4 numbers).
+template <class T>
+inline void HhtRotationGt(const T* e, const T* w, T* out) {
+  out[0] = -e[1] * w[0] - e[2] * w[1] - e[3] * w[2];
+  out[1] = e[0] * w[0] - e[3] * w[1] + e[2] * w[2];
+  out[2] = e[3] * w[0] + e[0] * w[1] - e[1] * w[2];
+  out[3] = -e[2] * w[0] + e[1] * w[1] + e[0] * w[2];
+}
+
+// The quaternion product p (x) r (Hamilton, scalar first).
+template <class T>
+inline void HhtQuatMul(const T* p, const T* r, T* out) {
+  out[0] = p[0] * r[0] - p[1] * r[1] - p[2] * r[2] - p[3] * r[3];
+  out[1] = p[0] * r[1] + p[1] * r[0] + p[2] * r[3] - p[3] * r[2];
+  out[2] = p[0] * r[2] - p[1] * r[3] + p[2] * r[0] + p[3] * r[1];
+  out[3] = p[0] * r[3] + p[1] * r[2] - p[2] * r[1] + p[3] * r[0];
+}
+
 // The map's last part, from theta and omega_{n+1} (HhtRotationMap and HhtRotationIterate).
 template <class T>
 void HhtRotationFinish(const HhtRotationScheme& sc, double h, const T* e0, const T* a1,
@@ -59,16 +85,9 @@ void HhtRotationFinish(const HhtRotationScheme& sc, double h, const T* e0, const
     sc_ = 0.5 - ang2 / 48;
   }
   const T rq[4] = {c, sc_ * th[0], sc_ * th[1], sc_ * th[2]};
-  T eu[4];
-  eu[0] = e0[0] * rq[0] - e0[1] * rq[1] - e0[2] * rq[2] - e0[3] * rq[3];
-  eu[1] = e0[0] * rq[1] + e0[1] * rq[0] + e0[2] * rq[3] - e0[3] * rq[2];
-  eu[2] = e0[0] * rq[2] - e0[1] * rq[3] + e0[2] * rq[0] + e0[3] * rq[1];
-  eu[3] = e0[0] * rq[3] + e0[1] * rq[2] - e0[2] * rq[1] + e0[3] * rq[0];
-  T ed[4];
-  ed[0] = -eu[1] * w1[0] - eu[2] * w1[1] - eu[3] * w1[2];
-  ed[1] = eu[0] * w1[0] - eu[3] * w1[1] + eu[2] * w1[2];
-  ed[2] = eu[3] * w1[0] + eu[0] * w1[1] - eu[1] * w1[2];
-  ed[3] = -eu[2] * w1[0] + eu[1] * w1[1] + eu[0] * w1[2];
+  T eu[4], ed[4];
+  HhtQuatMul(e0, rq, eu);
+  HhtRotationGt<T>(eu, w1, ed);
   T s = T(0);
   for (int k = 0; k < 4; ++k) {
     ed[k] *= 0.5;
@@ -93,14 +112,6 @@ void HhtRotationFinish(const HhtRotationScheme& sc, double h, const T* e0, const
     inside->sc = sc_;
     inside->s = s;
   }
-}
-
-// G(e) v for the 4-vector v (Nikravesh's body matrix G: omega_body = 2 G(e) e').
-template <class T>
-inline void HhtRotationG(const T* e, const T* v, T* out) {
-  out[0] = -e[1] * v[0] + e[0] * v[1] + e[3] * v[2] - e[2] * v[3];
-  out[1] = -e[2] * v[0] - e[3] * v[1] + e[0] * v[2] + e[1] * v[3];
-  out[2] = -e[3] * v[0] + e[2] * v[1] - e[1] * v[2] + e[0] * v[3];
 }
 
 template <class T>

@@ -1144,6 +1144,14 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
   double* const cqtw = out.constraint_transpose_w;
   if (cqtw) std::fill(cqtw, cqtw + nq, 0.0);
   const bool cq = sCq.active() || cqtw;
+  // Every entry of C_q goes through here, n of a row in consecutive columns from col: to
+  // the sink, and their products with w to cqtw (the tests outside the loops).
+  auto add_cq = [&](int row, int col, const double* values, int n) __attribute__((always_inline)) {
+    if (sCq.active())
+      for (int i = 0; i < n; ++i) sCq.Add(row, col + i, values[i]);
+    if (cqtw)
+      for (int i = 0; i < n; ++i) cqtw[col + i] += values[i] * w[row];
+  };
   if (out.force) std::fill(out.force, out.force + nq, 0.0);
   if (out.constraint) std::fill(out.constraint, out.constraint + nc, 0.0);
   if (out.constraint_dt) std::fill(out.constraint_dt, out.constraint_dt + nc, 0.0);
@@ -1281,10 +1289,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
           const int o = ji.offset[s];
           if (U.sig[s] != 0 || W.sig[s] != 0) {
             const Vec3 gr = U.sig[s] * W.x + W.sig[s] * U.x;
-            if (sCq.active())
-              for (int i = 0; i < 3; ++i) sCq.Add(row, o + i, gr[i]);
-            if (cqtw)
-              for (int i = 0; i < 3; ++i) cqtw[o + i] += gr[i] * w[row];
+            add_cq(row, o, gr.data(), 3);
           } else {
             for (int i = 0; i < 3; ++i) sCq.Declare(row, o + i);
           }
@@ -1292,10 +1297,7 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
             Quat ge = Quat::Zero();
             if (U.rot[s]) ge += BtW(bs[s]->e, U.ub[s], W.x);
             if (W.rot[s]) ge += BtW(bs[s]->e, W.ub[s], U.x);
-            if (sCq.active())
-              for (int i = 0; i < 4; ++i) sCq.Add(row, o + 3 + i, ge[i]);
-            if (cqtw)
-              for (int i = 0; i < 4; ++i) cqtw[o + 3 + i] += ge[i] * w[row];
+            add_cq(row, o + 3, ge.data(), 4);
           } else {
             for (int i = 0; i < 4; ++i) sCq.Declare(row, o + 3 + i);
           }
@@ -1390,13 +1392,12 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
           mc.last[u] = value;
         }
         c += mc.coef[u] * value;
-        if (sCq.active())
-          for (int r = 0; r < 14; ++r)
-            if (mj.offset[r / 7] >= 0) sCq.Add(row, mj.offset[r / 7] + r % 7, mc.coef[u] * mj.gradient[r]);
-        if (cqtw)
-          for (int r = 0; r < 14; ++r)
-            if (mj.offset[r / 7] >= 0)
-              cqtw[mj.offset[r / 7] + r % 7] += (mc.coef[u] * mj.gradient[r]) * w[row];
+        for (int b = 0; b < 2 && cq; ++b) {
+          if (mj.offset[b] < 0) continue;
+          double g[7];
+          for (int i = 0; i < 7; ++i) g[i] = mc.coef[u] * mj.gradient[7 * b + i];
+          add_cq(row, mj.offset[b], g, 7);
+        }
         if (!need_h) continue;
         const Vec14 vl = GatherLocal(mj.offset, v);
         const Vec14 hv = mj.hessian * vl;
@@ -1436,9 +1437,11 @@ int MultibodySystem::Impl::Run(const dae::EvalInput& in, dae::EvalOutput& out) {
     const Quat ed = Eigen::Map<const Quat>(v + o);
     if (out.constraint) out.constraint[row] = e.squaredNorm() - 1;
     if (out.acc_rhs) out.acc_rhs[row] = -2 * ed.squaredNorm();
+    if (cq) {
+      const double ge[4] = {2 * e[0], 2 * e[1], 2 * e[2], 2 * e[3]};
+      add_cq(row, o, ge, 4);
+    }
     for (int k = 0; k < 4; ++k) {
-      if (sCq.active()) sCq.Add(row, o + k, 2 * e[k]);
-      if (cqtw) cqtw[o + k] += (2 * e[k]) * w[row];
       if (sCv.active()) sCv.Add(row, o + k, 2 * ed[k]);
       if (sCtw.active()) sCtw.Add(o + k, o + k, 2 * w[row]);
     }

@@ -56,12 +56,12 @@ constexpr int kGx = L::kEIter;  // inputs other than e_iter
 using GroupJac = Eigen::Matrix<double, L::kOutputs, kGx>;
 
 // Total derivative of y with respect to the first 19 inputs, with e_iter = e_{n+1}.
-GroupJac GroupJacobian(const Scheme& sc, double h, double r, const double* xin) {
+GroupJac GroupJacobian(const dae::HhtRotationScheme& sc, double h, double r, const double* xin) {
   using Deriv = Eigen::Matrix<double, L::kInputs, 1>;
   using AD = Eigen::AutoDiffScalar<Deriv>;
   AD x[L::kInputs], y[L::kOutputs];
   for (int i = 0; i < L::kInputs; ++i) x[i] = AD(xin[i], L::kInputs, i);
-  dae::HhtRotationMap(dae::HhtRotationScheme::Of(sc.alpha, sc.eq), h, r, x, y);
+  dae::HhtRotationMap(sc, h, r, x, y);
   Eigen::Matrix<double, L::kOutputs, L::kInputs> J;
   for (int i = 0; i < L::kOutputs; ++i) J.row(i) = y[i].derivatives().transpose();
   const Eigen::Matrix<double, L::kOutputs, 4> Jit = J.middleCols<4>(L::kEIter);
@@ -92,6 +92,7 @@ class Sweeps {
     sc_.c2 = sc_.eq ? sc_.s : 1.0;
     sc_.cl = sc_.eq ? sc_.s : 1.0;
     sc_.modified = options.modified;
+    rotation_scheme_ = dae::HhtRotationScheme::Of(sc_.alpha, sc_.eq);
     if (sc_.modified) groups_ = system.quaternion_offsets();
     quat_.assign(nq_, false);
     for (int g : groups_)
@@ -158,11 +159,11 @@ class Sweeps {
     for (size_t grp = 0; grp < groups_.size(); ++grp) {
       const int g = groups_[grp];
       double w[3], wp[3];
-      Gx(win_.q(n) + g, a + g, w);
+      dae::HhtRotationG(win_.q(n) + g, a + g, w);
       if (n == 0 || !sc_.eq) {
         for (int k = 0; k < 3; ++k) wbar[3 * grp + k] = 2 * w[k];
       } else {
-        Gx(win_.q(n - 1) + g, win_.a(n - 1) + g, wp);
+        dae::HhtRotationG(win_.q(n - 1) + g, win_.a(n - 1) + g, wp);
         for (int k = 0; k < 3; ++k) wbar[3 * grp + k] = 2 * ((1 + sc_.alpha) * w[k] - sc_.alpha * wp[k]);
       }
     }
@@ -173,7 +174,6 @@ class Sweeps {
     win_first_ = win_.first(i);
     return true;
   }
-  static void Gx(const double* e, const double* v, double* out) { dae::HhtRotationG(e, v, out); }
 
   // Evaluates everything step k needs (matrices at s_k, the Newton matrix, the group
   // Jacobians; for the negrut form the matrices of F at s_{k-1}).
@@ -206,7 +206,7 @@ class Sweeps {
           x[L::kEIter + i] = win_.q(k)[g + i];
         }
         for (int i = 0; i < 3; ++i) x[L::kWbar0 + i] = wbar_[3 * grp + i];
-        T_[grp] = GroupJacobian(sc_, h, r, x);
+        T_[grp] = GroupJacobian(rotation_scheme_, h, r, x);
         // The Newton matrix's rotation blocks (dae/hht.h, HhtNewtonMatrix::Assemble):
         // with them it is Rt_u itself.
         double de[16], ded[16];
@@ -215,7 +215,7 @@ class Sweeps {
             de[4 * i + j] = T_[grp](L::kE1 + i, L::kA1 + j);
             ded[4 * i + j] = T_[grp](L::kEd1 + i, L::kA1 + j);
           }
-        dae::HhtRotationBlock(dae::HhtRotationScheme::Of(sc_.alpha, sc_.eq), h, de, ded,
+        dae::HhtRotationBlock(rotation_scheme_, h, de, ded,
                               &rotation_[32 * grp]);
       }
     }
@@ -380,6 +380,7 @@ class Sweeps {
   SystemMatrices::Request all_, prev_;
   int nq_ = 0, nc_ = 0, np_ = 0, no_ = 0;
   Scheme sc_;
+  dae::HhtRotationScheme rotation_scheme_;  // the rotation update's constants
   std::vector<int> groups_;
   std::vector<bool> quat_;
   std::vector<GroupJac> T_;
@@ -551,8 +552,8 @@ bool Sweeps::Adjoint(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
       for (int grp = 0; grp < ng && sc_.eq; ++grp) {
         const int g = groups_[grp];
         double w1[3], w2[3];
-        Gx(dq + g, win_.a(0) + g, w1);
-        Gx(win_.q(0) + g, da + g, w2);
+        dae::HhtRotationG(dq + g, win_.a(0) + g, w1);
+        dae::HhtRotationG(win_.q(0) + g, da + g, w2);
         for (int i = 0; i < 3; ++i) sum += Swb[3 * grp + i] * 2 * (w1[i] + w2[i]);
       }
       gp[k] += sum;
@@ -582,8 +583,8 @@ bool Sweeps::Forward(const InitialStateDerivatives& dx0, HhtSensitivityResult* o
     for (int grp = 0; grp < ng && sc_.eq; ++grp) {
       const int g = groups_[grp];
       double w1[3], w2[3];
-      Gx(ds.q.data() + size_t(k) * nq_ + g, win_.a(0) + g, w1);
-      Gx(win_.q(0) + g, ds.a.data() + size_t(k) * nq_ + g, w2);
+      dae::HhtRotationG(ds.q.data() + size_t(k) * nq_ + g, win_.a(0) + g, w1);
+      dae::HhtRotationG(win_.q(0) + g, ds.a.data() + size_t(k) * nq_ + g, w2);
       for (int i = 0; i < 3; ++i) ds.wb[size_t(k) * 3 * ng + 3 * grp + i] = 2 * (w1[i] + w2[i]);
     }
   // dG += (w grad g + [terminal] grad phi) . ds_n + partials in p.
